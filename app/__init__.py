@@ -1,0 +1,1 @@
+"""Sketchmesh desktop app (PySide6). Calls :mod:`engine` only, on a worker thread."""

@@ -1,0 +1,54 @@
+"""The ONNX boundary between ``training`` (which exports) and ``engine`` (which runs).
+
+Both sides import these names; the exporter writes the metadata, the engine checks it
+on load. Image conventions are in :mod:`engine.camera`.
+
+Generator (``generator.onnx``)
+    input  ``sketch``  (N, 1, 256, 256) float32 in [0, 1], 1 = ink (a framed sketch).
+    output ``normals`` (N, 3, 256, 256) float32 in [0, 1], the encoded normal image
+           ((n + 1) / 2, background 0).
+
+Mesh predictor (``mesh_predictor.onnx``)
+    input  ``normals`` (N, 3, 64, 64) float32 in [0, 1] (the generator output, area-downsampled).
+    outputs ``local_offset`` (N, V, 3) and ``global_offset`` (N, 3) float32; the mesh in the
+           view frame is ``template_vertices + local_offset + global_offset[:, None]``.
+
+Metadata (``metadata_props`` of each model, all strings)
+    ``sketchmesh_format`` (= FORMAT_VERSION), ``sketchmesh_role`` ("generator" or
+    "mesh_predictor"), ``code_version``, ``config`` (JSON of the resolved training config),
+    ``conventions`` (= CONVENTIONS_ID); the mesh predictor also carries
+    ``template_level`` (e.g. "3") and ``template_radius``; the generator carries
+    ``base_channels``. ``quantization`` ("none" or "int8-dynamic") is optional.
+"""
+
+from __future__ import annotations
+
+FORMAT_VERSION = "1"
+CONVENTIONS_ID = "sketchmesh-conventions-1"
+
+GENERATOR_FILE = "generator.onnx"
+PREDICTOR_FILE = "mesh_predictor.onnx"
+
+SKETCH_SIZE = 256
+PREDICTOR_INPUT_SIZE = 64
+
+GENERATOR_INPUT = "sketch"
+GENERATOR_OUTPUT = "normals"
+PREDICTOR_INPUT = "normals"
+PREDICTOR_OUTPUT_LOCAL = "local_offset"
+PREDICTOR_OUTPUT_GLOBAL = "global_offset"
+
+ROLE_GENERATOR = "generator"
+ROLE_PREDICTOR = "mesh_predictor"
+
+META_FORMAT = "sketchmesh_format"
+META_ROLE = "sketchmesh_role"
+META_CODE_VERSION = "code_version"
+META_CONFIG = "config"
+META_CONVENTIONS = "conventions"
+META_TEMPLATE_LEVEL = "template_level"
+META_TEMPLATE_RADIUS = "template_radius"
+META_BASE_CHANNELS = "base_channels"
+META_QUANTIZATION = "quantization"
+
+REQUIRED_METADATA = (META_FORMAT, META_ROLE, META_CODE_VERSION, META_CONVENTIONS)

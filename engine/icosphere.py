@@ -1,0 +1,90 @@
+"""The icosphere template the mesh predictor deforms.
+
+Level k has ``10 * 4**k + 2`` vertices and ``20 * 4**k`` faces: level 2 -> 162 / 320,
+level 3 -> 642 / 1280 (the paper's template), level 4 -> 2562 / 5120. Vertices lie on
+a sphere of radius :data:`TEMPLATE_RADIUS`, faces wind counter-clockwise seen from
+outside (outward normals), and the vertex order is deterministic: the 12 icosahedron
+vertices first, then one new vertex per edge midpoint, level by level, in order of first
+appearance over the faces.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from engine.mesh import Mesh
+
+TEMPLATE_RADIUS = 0.5
+"""Radius of the template sphere; a normalised shape fits in [-0.5, 0.5]^3."""
+
+PAPER_LEVEL = 3
+
+
+def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    p = (1.0 + 5.0**0.5) / 2.0
+    v = np.array(
+        [[-1, p, 0], [1, p, 0], [-1, -p, 0], [1, -p, 0],
+         [0, -1, p], [0, 1, p], [0, -1, -p], [0, 1, -p],
+         [p, 0, -1], [p, 0, 1], [-p, 0, -1], [-p, 0, 1]],
+        dtype=np.float64,
+    )
+    f = np.array(
+        [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+         [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+         [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+         [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]],
+        dtype=np.int64,
+    )
+    return v / np.linalg.norm(v, axis=1, keepdims=True), f
+
+
+def _subdivide(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]], axis=0)  # (3F, 2) in face-major blocks
+    F = len(f)
+    # order edges by first appearance over faces (face 0's three edges, face 1's, ...)
+    edges = edges.reshape(3, F, 2).transpose(1, 0, 2).reshape(-1, 2)
+    key = np.sort(edges, axis=1)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    # renumber unique edges by first appearance
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    mid_id = len(v) + rank[inverse].reshape(F, 3)  # midpoint of edges (01, 12, 20) per face
+    uniq_sorted = key[np.sort(first)]
+    mids = v[uniq_sorted[:, 0]] + v[uniq_sorted[:, 1]]
+    mids /= np.linalg.norm(mids, axis=1, keepdims=True)
+    a, b, c = f[:, 0], f[:, 1], f[:, 2]
+    ab, bc, ca = mid_id[:, 0], mid_id[:, 1], mid_id[:, 2]
+    nf = np.stack(
+        [np.stack([a, ab, ca], 1), np.stack([b, bc, ab], 1), np.stack([c, ca, bc], 1), np.stack([ab, bc, ca], 1)],
+        axis=1,
+    ).reshape(-1, 3)
+    return np.concatenate([v, mids]), nf
+
+
+@lru_cache(maxsize=8)
+def _icosphere_arrays(level: int) -> tuple[np.ndarray, np.ndarray]:
+    v, f = _icosahedron()
+    for _ in range(level):
+        v, f = _subdivide(v, f)
+    return v, f
+
+
+def icosphere(level: int = PAPER_LEVEL, radius: float = TEMPLATE_RADIUS) -> Mesh:
+    """The template sphere at a subdivision level (0..6); level 3 is the paper's 642-vertex sphere."""
+    if not isinstance(level, (int, np.integer)) or not 0 <= level <= 6:
+        raise ValueError(f"icosphere level must be an integer in [0, 6], got {level!r}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise ValueError(f"icosphere radius must be finite and > 0, got {radius}")
+    v, f = _icosphere_arrays(int(level))
+    return Mesh(v * radius, f)
+
+
+def level_for_vertex_count(num_vertices: int) -> int:
+    """Inverse of the vertex count formula; raises ValueError for counts that are not an icosphere's."""
+    for level in range(7):
+        if 10 * 4**level + 2 == num_vertices:
+            return level
+    raise ValueError(f"{num_vertices} vertices is not an icosphere vertex count (162, 642, 2562, ...)")

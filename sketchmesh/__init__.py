@@ -1,0 +1,1 @@
+"""The ``sketchmesh`` command: a thin dispatcher over ``app``, ``engine`` and ``training``."""

@@ -1,0 +1,5 @@
+import sys
+
+from sketchmesh.cli import main
+
+sys.exit(main())

@@ -1,0 +1,76 @@
+"""Command-line entry point: ``sketchmesh [SUBCOMMAND] ...``.
+
+With no subcommand it starts the desktop app. Each layer registers its own subcommands
+from a module that is cheap to import (argparse only; torch and Qt are imported inside the
+command functions), so ``sketchmesh --help`` and ``sketchmesh infer`` never load torch.
+
+Registration contract: every module in :data:`REGISTRARS` defines
+``register(commands, bench)`` where ``commands`` and ``bench`` are argparse sub-parser
+collections (top-level commands and ``bench`` sub-commands). Each parser it adds sets
+``func=callable(args) -> int`` via ``set_defaults``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+
+from engine.errors import SketchmeshError
+
+REGISTRARS = (
+    "engine.cli",  # infer, bench engine
+    "training.cli_data",  # data, bench data
+    "training.cli_train",  # train, eval, export
+    "training.cli_bench",  # bench renderer, bench fit
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sketchmesh",
+        description="Sketch-based modelling: one freehand sketch in, a 3D mesh out. "
+        "Run with no subcommand to start the desktop app.",
+    )
+    parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
+    from app.main import add_gui_arguments
+
+    add_gui_arguments(parser)
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    bench_parser = commands.add_parser("bench", help="benchmarks that print tables and write JSON")
+    bench = bench_parser.add_subparsers(dest="bench_command", metavar="BENCHMARK", required=True)
+    for name in REGISTRARS:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:  # a real missing dependency inside the module
+                raise
+            continue  # that layer has not registered commands yet
+        module.register(commands, bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    debug = args.debug or os.environ.get("SKETCHMESH_DEBUG") == "1"
+    try:
+        if args.command is None:
+            from app.main import run_gui
+
+            return int(run_gui(args) or 0)
+        return int(args.func(args) or 0)
+    except SketchmeshError as exc:
+        if debug:
+            raise
+        print(f"sketchmesh: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("sketchmesh: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # last resort: one line, not a traceback
+        if debug:
+            raise
+        print(f"sketchmesh: error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", file=sys.stderr)
+        return 1

@@ -1,0 +1,63 @@
+"""The layering rule: engine and app never load torch or training; engine never loads Qt."""
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _loaded_after(code: str) -> set[str]:
+    out = subprocess.run(
+        [sys.executable, "-c", code + "\nimport sys\nprint('\\n'.join(sorted(sys.modules)))"],
+        capture_output=True, text=True, cwd=ROOT, check=True,
+    ).stdout.split()
+    return {m.split(".")[0] for m in out}
+
+
+@pytest.mark.parametrize("code", [
+    "import engine, engine.camera, engine.mesh, engine.icosphere, engine.contract, engine.strokes",
+    "import app, app.main",
+])
+def test_fresh_interpreter_does_not_load_torch_or_training(code):
+    loaded = _loaded_after(code)
+    assert "torch" not in loaded
+    assert "training" not in loaded
+
+
+def test_cli_parser_does_not_load_torch():
+    """`sketchmesh --help` and `sketchmesh infer` must not pay for torch (training registers lazily)."""
+    assert "torch" not in _loaded_after("import sketchmesh.cli; sketchmesh.cli.build_parser()")
+
+
+def test_engine_does_not_load_qt():
+    loaded = _loaded_after("import engine, engine.camera, engine.mesh, engine.icosphere")
+    assert not {"PySide6", "pyvista", "pyvistaqt", "vtk", "vtkmodules"} & loaded
+
+
+def _imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+@pytest.mark.parametrize("package, forbidden", [
+    ("engine", {"torch", "training", "app", "PySide6", "pyvista", "pyvistaqt", "vtk"}),
+    ("app", {"torch", "training"}),
+    ("training", {"app", "PySide6", "pyvistaqt"}),
+])
+def test_no_source_file_imports_across_layers(package, forbidden):
+    """Static check, including imports inside functions, for every file of the layer."""
+    files = sorted((ROOT / package).rglob("*.py"))
+    assert files, f"no source files found under {package}/"
+    for path in files:
+        bad = _imports(path) & forbidden
+        assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"
