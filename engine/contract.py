@@ -52,3 +52,12 @@ META_BASE_CHANNELS = "base_channels"
 META_QUANTIZATION = "quantization"
 
 REQUIRED_METADATA = (META_FORMAT, META_ROLE, META_CODE_VERSION, META_CONVENTIONS)
+
+# ---- sketch raster style, shared by the data generator and the engine's preprocessing ----
+SKETCH_STROKE_WIDTH_PX = 2.0
+"""Normalised stroke width (pixels at 256x256) of the generator's input. The data generator
+draws clean line drawings at this width; the engine thins a user's strokes to one pixel and
+redraws them at this width, so both look alike to the generator."""
+
+SKETCH_INK_THRESHOLD = 0.5
+"""Ink coverage (after polarity normalisation, 1 = ink) above which a pixel counts as a stroke."""
