@@ -1,0 +1,264 @@
+"""``sketchmesh bench engine``: per-stage latency of the inference pipeline, and what int8 costs in accuracy.
+
+For each variant -- ``fp32`` (the models as given), ``int8-predictor`` (only the mesh predictor
+dynamically quantised) and ``int8`` (both) -- every stage (preprocess, generator, downsample,
+predictor, assemble, export, total) is timed over ``runs`` predictions with the cache off, and
+the variant's error against fp32 on the same sketches is measured: normal-image mean absolute
+error (in encoded [0, 1] units) and per-vertex distance mean / max (in units of the normalised
+shape, whose bounding box is 1 on its longest side). Error against run time, in one table.
+
+Quantisation needs the ``onnx`` package (a dev/train extra); without it only fp32 is measured.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine import contract as C
+from engine.errors import MissingExtraError, ModelError, SketchInputError
+from engine.models import model_paths, resolve_models_dir
+
+STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
+VARIANTS = ("fp32", "int8-predictor", "int8")
+EXPORT_SUFFIX = ".glb"
+"""Format timed by the ``export`` stage (the app's default export)."""
+
+
+def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
+    """Dynamic int8 quantisation of one model (weights int8, activations quantised at run time).
+
+    ``graph.value_info`` is cleared first (dynamo-exported models otherwise fail shape
+    inference, see MEASUREMENTS.md); metadata is kept and ``quantization`` set to ``int8-dynamic``.
+
+    Raises:
+        MissingExtraError: the ``onnx`` package is not installed.
+        ModelError: quantisation failed.
+    """
+    try:
+        import onnx
+        from onnxruntime.quantization import QuantType, quantize_dynamic
+    except ImportError as exc:
+        raise MissingExtraError(f"int8 quantisation needs the onnx package ({exc}); pip install 'sketchmesh[dev]'") from None
+    src, dst = Path(src), Path(dst)
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    root = logging.getLogger()
+    level = root.level
+    with tempfile.TemporaryDirectory(prefix="sketchmesh-quant-") as tmp:
+        try:
+            model = onnx.load(str(src))
+            del model.graph.value_info[:]
+            cleared = Path(tmp) / "input.onnx"
+            onnx.save(model, str(cleared))
+            root.setLevel(logging.ERROR)  # quantize_dynamic warns on the root logger about pre-processing
+            quantize_dynamic(str(cleared), str(Path(tmp) / "q.onnx"), weight_type=QuantType.QInt8)
+            q = onnx.load(str(Path(tmp) / "q.onnx"))
+        except Exception as exc:  # onnx / onnxruntime raise many types
+            raise ModelError(f"{src}: int8 quantisation failed: {' '.join(str(exc).split())[:300]}") from None
+        finally:
+            root.setLevel(level)
+    meta = {p.key: p.value for p in q.metadata_props}
+    meta[C.META_QUANTIZATION] = "int8-dynamic"
+    meta.pop("onnx.infer", None)
+    del q.metadata_props[:]
+    for k, v in meta.items():
+        entry = q.metadata_props.add()
+        entry.key, entry.value = k, v
+    from engine.fileio import atomic_write_bytes
+
+    atomic_write_bytes(dst, q.SerializeToString())
+    return dst
+
+
+def make_variant(models_dir: Path, variant: str, out_dir: Path) -> Path:
+    """A folder holding the models of ``variant`` (``fp32`` returns ``models_dir`` itself)."""
+    if variant == "fp32":
+        return models_dir
+    if variant not in VARIANTS:
+        raise SketchInputError(f"unknown variant {variant!r}; choose from {', '.join(VARIANTS)}")
+    gen, pred = model_paths(models_dir)
+    folder = out_dir / variant
+    folder.mkdir(parents=True, exist_ok=True)
+    if variant == "int8":
+        quantize_model(gen, folder / C.GENERATOR_FILE)
+    else:
+        shutil.copyfile(gen, folder / C.GENERATOR_FILE)
+    quantize_model(pred, folder / C.PREDICTOR_FILE)
+    return folder
+
+
+def synthetic_sketches(folder: Path, size: int = 512) -> list[Path]:
+    """Write a few synthetic dark-on-white sketch PNGs (a mug-like outline, a box, a star) into ``folder``."""
+    import cv2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    c = size / 2.0
+    t = np.linspace(0, 2 * np.pi, 120)
+    shapes = {
+        "ellipse": [np.stack([c + 0.35 * size * np.cos(t), c + 0.25 * size * np.sin(t)], 1)],
+        "box": [np.array([[0.2, 0.3], [0.6, 0.3], [0.8, 0.15], [0.4, 0.15], [0.2, 0.3], [0.2, 0.8], [0.6, 0.8],
+                          [0.6, 0.3], [0.8, 0.15], [0.8, 0.65], [0.6, 0.8]]) * size],
+        "star": [np.stack([c + (0.4 - 0.2 * (np.arange(11) % 2)) * size * np.cos(np.arange(11) * np.pi / 5),
+                           c + (0.4 - 0.2 * (np.arange(11) % 2)) * size * np.sin(np.arange(11) * np.pi / 5)], 1)],
+    }
+    paths = []
+    for name, polys in shapes.items():
+        img = np.full((size, size), 255, np.uint8)
+        cv2.polylines(img, [np.round(p * 16).astype(np.int32) for p in polys], False, 0, 4, cv2.LINE_AA, 4)
+        p = folder / f"{name}.png"
+        cv2.imwrite(str(p), img)
+        paths.append(p)
+    return paths
+
+
+def _default_sketches(tmp: Path) -> list[Path]:
+    try:
+        from assets import SAMPLES_DIR
+    except ModuleNotFoundError:
+        SAMPLES_DIR = Path(__file__).resolve().parents[1] / "assets" / "samples"
+    found = sorted(p for p in Path(SAMPLES_DIR).glob("*") if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".webp", ".tif", ".tiff"))
+    return found or synthetic_sketches(tmp / "sketches")
+
+
+def _percentiles(ms: list[float]) -> tuple[float, float, float]:
+    a = np.asarray(ms, dtype=np.float64)
+    return float(np.percentile(a, 50)), float(np.percentile(a, 95)), float(a.mean())
+
+
+def bench_variant(folder: Path, sketches: list[Path], runs: int, warmup: int, threads: int | None, export_dir: Path,
+                  progress=None) -> tuple[dict[str, list[float]], list]:
+    """Time ``runs`` predictions (+ export) of one variant with the cache off.
+
+    Returns:
+        (stage -> list of ms, first prediction of each sketch for the error comparison).
+    """
+    from engine.export import export_mesh
+    from engine.pipeline import SketchEngine
+
+    engine = SketchEngine(folder, threads=threads, cache_size=0)
+    engine.load()
+    reference = [engine.predict(s, want_normals=True) for s in sketches]
+    for k in range(warmup):
+        engine.predict(sketches[k % len(sketches)])
+    times: dict[str, list[float]] = {s: [] for s in STAGES}
+    out = export_dir / f"mesh{EXPORT_SUFFIX}"
+    for k in range(runs):
+        t0 = time.perf_counter()
+        pred = engine.predict(sketches[k % len(sketches)])
+        t1 = time.perf_counter()
+        export_mesh(pred.mesh, out)
+        t2 = time.perf_counter()
+        for s, v in pred.timings_ms.items():
+            times[s].append(v)
+        times["export"].append((t2 - t1) * 1e3)
+        times["total"].append((t2 - t0) * 1e3)
+        if progress is not None:
+            progress.update(1)
+    return times, reference
+
+
+def variant_error(reference: list, candidate: list) -> dict[str, float]:
+    """Error of ``candidate`` predictions against ``reference`` (same sketches, same order).
+
+    Returns:
+        normals_mae: mean |normals - normals_ref| over pixels and channels (encoded units, [0, 1]);
+        vertex_mean / vertex_max: per-vertex Euclidean distance, mean over all and max over all.
+    """
+    mae, vmean, vmax = [], [], []
+    for r, c in zip(reference, candidate):
+        mae.append(float(np.abs(c.normals.astype(np.float64) - r.normals).mean()))
+        d = np.linalg.norm(c.mesh.vertices.astype(np.float64) - r.mesh.vertices, axis=1)
+        vmean.append(float(d.mean()))
+        vmax.append(float(d.max()))
+    return {"normals_mae": float(np.mean(mae)), "vertex_mean": float(np.mean(vmean)), "vertex_max": float(np.max(vmax))}
+
+
+def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: int | None = None,
+                     sketches: list[str] | None = None, variants: list[str] | None = None, json_path: str | None = None) -> int:
+    """Run the benchmark, print the table, optionally write JSON records. Returns the exit code (0).
+
+    Each record: benchmark, variant, stage, p50_ms, p95_ms, mean_ms, runs, threads, error
+    (normals_mae, vertex_mean, vertex_max against fp32), model_bytes, models_dir, machine.
+    """
+    from engine.models import default_threads
+
+    variants = list(variants or VARIANTS)
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad:
+        raise SketchInputError(f"unknown variant {bad[0]!r}; choose from {', '.join(VARIANTS)}")
+    if "fp32" not in variants:
+        variants.insert(0, "fp32")  # the reference for the error columns
+    src = resolve_models_dir(models_dir)
+    model_paths(src)
+    threads = threads or default_threads()
+    records = []
+    with tempfile.TemporaryDirectory(prefix="sketchmesh-bench-") as tmp_name:
+        tmp = Path(tmp_name)
+        sketch_paths = [Path(s) for s in sketches] if sketches else _default_sketches(tmp)
+        progress = None
+        with contextlib.suppress(ImportError):
+            from tqdm import tqdm
+
+            progress = tqdm(total=runs * len(variants), unit="run", file=sys.stderr, leave=False, disable=None)
+        results = {}
+        notes = []
+        for variant in variants:
+            try:
+                folder = make_variant(src, variant, tmp / "variants")
+            except MissingExtraError as exc:
+                notes.append(f"{variant}: skipped ({exc})")
+                continue
+            times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress)
+            size = sum(p.stat().st_size for p in model_paths(folder))
+            results[variant] = (times, ref, size)
+        if progress is not None:
+            progress.close()
+    base_ref = results["fp32"][1]
+    machine = {"python": platform.python_version(), "cpu_count": os.cpu_count(), "platform": platform.platform()}
+    for variant, (times, ref, size) in results.items():
+        err = variant_error(base_ref, ref)
+        for stage in STAGES:
+            p50, p95, mean = _percentiles(times[stage])
+            records.append({
+                "benchmark": "engine", "variant": variant, "stage": stage, "p50_ms": round(p50, 4),
+                "p95_ms": round(p95, 4), "mean_ms": round(mean, 4), "runs": runs, "threads": threads,
+                "error": err, "model_bytes": size, "models_dir": str(src), "sketches": len(sketch_paths),
+                "machine": machine,
+            })
+    print(format_table(records))
+    for n in notes:
+        print(f"note: {n}")
+    if json_path:
+        import json
+
+        from engine.errors import ExportError
+        from engine.fileio import atomic_write_text
+
+        try:
+            atomic_write_text(json_path, json.dumps(records, indent=2) + "\n")
+        except OSError as exc:
+            raise ExportError(f"cannot write {json_path}: {exc.strerror or exc}") from None
+        print(f"wrote {len(records)} records to {json_path}")
+    return 0
+
+
+def format_table(records: list[dict]) -> str:
+    """Plain-text table: one row per (variant, stage) with p50 / p95 and the variant's error."""
+    head = f"{'variant':<15} {'stage':<11} {'p50 ms':>9} {'p95 ms':>9}  {'normals MAE':>11} {'vert mean':>10} {'vert max':>10} {'MB':>7}"
+    lines = [head, "-" * len(head)]
+    for r in records:
+        e = r["error"]
+        lines.append(
+            f"{r['variant']:<15} {r['stage']:<11} {r['p50_ms']:>9.3f} {r['p95_ms']:>9.3f}  "
+            f"{e['normals_mae']:>11.2e} {e['vertex_mean']:>10.2e} {e['vertex_max']:>10.2e} {r['model_bytes'] / 1e6:>7.2f}"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,297 @@
+"""The inference pipeline the app and the CLI call: sketch -> normal image -> mesh.
+
+Stages (each timed in :attr:`Prediction.timings_ms`):
+
+1. ``preprocess``  strokes / image file / raster -> framed (256, 256) raster (:mod:`engine.preprocess`);
+2. ``generator``   (1, 1, 256, 256) -> normal image (1, 3, 256, 256) in [0, 1];
+3. ``downsample``  area-average to (1, 3, 64, 64) (``cv2.INTER_AREA`` on the HWC image);
+4. ``predictor``   -> ``local_offset`` (1, V, 3), ``global_offset`` (1, 3);
+5. ``assemble``    template vertices + local + global -> :class:`engine.mesh.Mesh` in the view
+   frame (:mod:`engine.camera`).
+
+Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
+cache keyed on a hash of the preprocessed raster skips stages 2-5 when the sketch has not
+changed. :meth:`SketchEngine.predict` is thread-safe and never touches Qt.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from engine import contract as C
+from engine.errors import EmptySketchError, ModelError, SketchInputError
+from engine.icosphere import icosphere
+from engine.mesh import Mesh
+from engine.models import LoadedModel, default_threads, load_generator, load_predictor, model_paths, resolve_models_dir
+from engine.preprocess import rasterize_strokes, sketch_raster_from_image
+from engine.strokes import Stroke
+
+STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble")
+"""Keys of :attr:`Prediction.timings_ms`, in pipeline order."""
+
+DEFAULT_CACHE_SIZE = 16
+"""Predictions kept by the LRU cache (one is ~0.8 MB: the normal image plus the mesh)."""
+
+MAX_OFFSET = 1e3
+"""Largest |vertex coordinate| accepted from the predictor; beyond it the model is broken."""
+
+
+@dataclass(frozen=True, eq=False)
+class Prediction:
+    """The result of one sketch.
+
+    Attributes:
+        mesh: the predicted mesh in the sketch's view frame (see :mod:`engine.camera`).
+        normals: (256, 256, 3) float32 normal image in [0, 1] (HWC, (n + 1) / 2, background 0),
+            only when asked for (``want_normals=True``), else None.
+        sketch: (256, 256) float32 in [0, 1], 1 = ink: the raster the generator saw.
+        timings_ms: one entry per stage in :data:`STAGES` (milliseconds); on a cache hit the
+            skipped stages are 0.0.
+        cached: True when stages 2-5 came from the cache.
+    """
+
+    mesh: Mesh
+    normals: np.ndarray | None
+    sketch: np.ndarray
+    timings_ms: dict[str, float]
+    cached: bool
+
+
+@dataclass(frozen=True, eq=False)
+class _Entry:
+    mesh: Mesh
+    normals_nchw: np.ndarray  # (1, 3, 256, 256) float32 generator output, read-only; HWC only on request
+
+
+def downsample_normals(normals_nchw: np.ndarray, size: int = C.PREDICTOR_INPUT_SIZE) -> np.ndarray:
+    """Area-average a normal image to the predictor's input size.
+
+    Args:
+        normals_nchw: (1, 3, H, W) float32.
+        size: output side.
+
+    Returns:
+        (1, 3, size, size) float32, C-contiguous.
+    """
+    a = np.asarray(normals_nchw, dtype=np.float32)
+    if a.ndim != 4 or a.shape[:2] != (1, 3):
+        raise ValueError(f"normals must be (1, 3, H, W), got {a.shape}")
+    hwc = np.ascontiguousarray(a[0].transpose(1, 2, 0))
+    small = cv2.resize(hwc, (size, size), interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(small.transpose(2, 0, 1)[None])
+
+
+def assemble_mesh(local_offset: np.ndarray, global_offset: np.ndarray, level: int, radius: float) -> Mesh:
+    """Template + offsets -> Mesh (view frame).
+
+    Args:
+        local_offset: (1, V, 3) or (V, 3).
+        global_offset: (1, 3) or (3,).
+        level: icosphere level of the template (V = 10 * 4**level + 2).
+        radius: template radius.
+
+    Raises:
+        ModelError: shapes that do not match the template, or non-finite / absurd values.
+    """
+    template = icosphere(level, radius)
+    local = np.asarray(local_offset, dtype=np.float64).reshape(-1, 3) if np.size(local_offset) % 3 == 0 else None
+    glob = np.asarray(global_offset, dtype=np.float64).reshape(-1)
+    if local is None or local.shape != template.vertices.shape:
+        raise ModelError(f"predictor local_offset must be (1, {template.num_vertices}, 3), got {np.shape(local_offset)}")
+    if glob.shape != (3,):
+        raise ModelError(f"predictor global_offset must be (1, 3), got {np.shape(global_offset)}")
+    v = template.vertices.astype(np.float64) + local + glob[None, :]
+    if not np.all(np.isfinite(v)) or np.abs(v).max() > MAX_OFFSET:
+        raise ModelError("the mesh predictor produced non-finite or absurd vertex positions (broken model?)")
+    return Mesh(v.astype(np.float32), template.faces)
+
+
+def raster_key(raster: np.ndarray) -> str:
+    """Cache key of a preprocessed raster: a hash of its float32 bytes and shape."""
+    a = np.ascontiguousarray(raster, dtype=np.float32)
+    return hashlib.blake2b(a.tobytes() + str(a.shape).encode(), digest_size=16).hexdigest()
+
+
+def _check_raster(raster: np.ndarray) -> np.ndarray:
+    a = np.asarray(raster)
+    if a.shape != (C.SKETCH_SIZE, C.SKETCH_SIZE):
+        raise SketchInputError(
+            f"a sketch raster must be the preprocessed ({C.SKETCH_SIZE}, {C.SKETCH_SIZE}) float32 (use "
+            f"engine.preprocess.preprocess_raster first), got {a.shape} {a.dtype}"
+        )
+    if not np.issubdtype(a.dtype, np.number):
+        raise SketchInputError(f"sketch raster must be numeric, got {a.dtype}")
+    a = a.astype(np.float32)
+    if not np.all(np.isfinite(a)):
+        raise SketchInputError("sketch raster contains NaN or inf")
+    if a.min() < 0.0 or a.max() > 1.0:
+        raise SketchInputError(f"sketch raster values must lie in [0, 1], got [{a.min():.3g}, {a.max():.3g}]")
+    if not np.any(a > C.SKETCH_INK_THRESHOLD):
+        raise EmptySketchError("the sketch is blank: no ink")
+    return a
+
+
+def to_raster(sketch) -> np.ndarray:
+    """Any accepted sketch form -> the preprocessed (256, 256) float32 raster.
+
+    Args:
+        sketch: a (256, 256) raster (used as given), a sequence of :class:`Stroke`, or an image path.
+    """
+    if isinstance(sketch, (str, os.PathLike)):
+        return sketch_raster_from_image(sketch)
+    if isinstance(sketch, np.ndarray):
+        return _check_raster(sketch)
+    if isinstance(sketch, Stroke):
+        return rasterize_strokes([sketch])
+    if isinstance(sketch, Sequence):
+        return rasterize_strokes(sketch)
+    raise SketchInputError(f"a sketch must be a (256, 256) raster, a list of strokes or an image path, got {type(sketch).__name__}")
+
+
+class SketchEngine:
+    """Sketch -> mesh with the two ONNX models. Nothing is loaded until first needed.
+
+    Args:
+        models_dir: folder with ``generator.onnx`` and ``mesh_predictor.onnx``; None uses the
+            bundled ``assets.MODELS_DIR``. A given folder replaces the bundled one entirely.
+        threads: onnxruntime intra-op threads; None = physical cores (capped).
+        cache_size: predictions kept in the LRU cache (0 disables caching).
+    """
+
+    def __init__(self, models_dir: str | os.PathLike | None = None, *, threads: int | None = None, cache_size: int = DEFAULT_CACHE_SIZE):
+        if threads is not None and (not isinstance(threads, int) or threads < 1):
+            raise ValueError(f"threads must be a positive int or None, got {threads!r}")
+        if not isinstance(cache_size, int) or cache_size < 0:
+            raise ValueError(f"cache_size must be an int >= 0, got {cache_size!r}")
+        self._models_dir = resolve_models_dir(models_dir)
+        self._threads = threads or default_threads()
+        self._cache_size = cache_size
+        self._cache: OrderedDict[str, _Entry] = OrderedDict()
+        self._generator: LoadedModel | None = None
+        self._predictor: LoadedModel | None = None
+        self._load_lock = threading.Lock()
+        self._run_lock = threading.Lock()
+        self._cache_lock = threading.Lock()
+
+    @property
+    def models_dir(self) -> Path:
+        """The model folder this engine reads."""
+        return self._models_dir
+
+    @property
+    def threads(self) -> int:
+        return self._threads
+
+    def load(self) -> None:
+        """Create and validate both sessions now (otherwise done on the first prediction).
+
+        Raises:
+            ModelError: missing folder/files, corrupt or non-conforming models.
+        """
+        with self._load_lock:
+            if self._generator is not None and self._predictor is not None:
+                return
+            gen_path, pred_path = model_paths(self._models_dir)
+            generator = load_generator(gen_path, self._threads)
+            predictor = load_predictor(pred_path, self._threads)
+            self._generator, self._predictor = generator, predictor
+
+    @property
+    def is_loaded(self) -> bool:
+        return self._generator is not None and self._predictor is not None
+
+    def model_info(self) -> dict:
+        """Paths, metadata, shapes and template level of both models (loads them if needed)."""
+        self.load()
+        return {
+            "models_dir": str(self._models_dir),
+            "threads": self._threads,
+            "generator": self._generator.info(),
+            "predictor": self._predictor.info(),
+            "template_level": self._predictor.template_level,
+            "template_radius": self._predictor.template_radius,
+        }
+
+    def clear_cache(self) -> None:
+        with self._cache_lock:
+            self._cache.clear()
+
+    def _run_models(self, raster: np.ndarray, timings: dict[str, float]) -> _Entry:
+        gen, pred = self._generator, self._predictor
+        x = raster[None, None].astype(np.float32)
+        with self._run_lock:
+            t0 = time.perf_counter()
+            (normals,) = gen.session.run([C.GENERATOR_OUTPUT], {gen.input_name: x})
+            t1 = time.perf_counter()
+            expected = (1, 3, C.SKETCH_SIZE, C.SKETCH_SIZE)
+            if normals.shape != expected:
+                raise ModelError(f"{gen.path}: generator output must be {expected}, got {normals.shape}")
+            if not np.all(np.isfinite(normals)):
+                raise ModelError(f"{gen.path}: the generator produced NaN or inf (broken model?)")
+            normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
+            small = downsample_normals(normals)
+            t2 = time.perf_counter()
+            local, glob = pred.session.run(pred.output_names, {pred.input_name: small})
+            t3 = time.perf_counter()
+        mesh = assemble_mesh(local, glob, pred.template_level, pred.template_radius)
+        t4 = time.perf_counter()
+        normals.setflags(write=False)
+        timings.update(generator=(t1 - t0) * 1e3, downsample=(t2 - t1) * 1e3, predictor=(t3 - t2) * 1e3, assemble=(t4 - t3) * 1e3)
+        return _Entry(mesh, normals)
+
+    def predict(self, sketch, *, want_normals: bool = False) -> Prediction:
+        """Predict a mesh from a sketch.
+
+        Args:
+            sketch: a preprocessed (256, 256) float32 raster (1 = ink), a sequence of
+                :class:`engine.strokes.Stroke`, or a path to an image file.
+            want_normals: also return the (256, 256, 3) normal image.
+
+        Returns:
+            A :class:`Prediction`; ``cached`` is True when the same raster was seen recently.
+
+        Raises:
+            SketchInputError / EmptySketchError: unusable or blank sketch.
+            ModelError: missing or broken models.
+        """
+        t0 = time.perf_counter()
+        raster = to_raster(sketch)
+        raster = np.array(raster, dtype=np.float32)
+        raster.setflags(write=False)
+        key = raster_key(raster)
+        timings = {"preprocess": (time.perf_counter() - t0) * 1e3}
+        self.load()
+        entry = None
+        if self._cache_size:
+            with self._cache_lock:
+                entry = self._cache.get(key)
+                if entry is not None:
+                    self._cache.move_to_end(key)
+        cached = entry is not None
+        if cached:
+            timings.update({s: 0.0 for s in STAGES[1:]})
+        else:
+            entry = self._run_models(raster, timings)
+            if self._cache_size:
+                with self._cache_lock:
+                    self._cache[key] = entry
+                    self._cache.move_to_end(key)
+                    while len(self._cache) > self._cache_size:
+                        self._cache.popitem(last=False)
+        return Prediction(
+            mesh=entry.mesh,
+            normals=np.ascontiguousarray(entry.normals_nchw[0].transpose(1, 2, 0)) if want_normals else None,
+            sketch=raster,
+            timings_ms={s: float(timings[s]) for s in STAGES},
+            cached=cached,
+        )
