@@ -73,7 +73,8 @@ def register(commands, bench) -> None:
     p.add_argument("--normals", metavar="PATH", help="also save the generated normal image as PNG (a folder for several sketches)")
     p.add_argument("--report", metavar="PATH", help="write a JSON report (timings, counts, watertight, self-intersections); "
                    "a folder for several sketches")
-    p.add_argument("--models", metavar="DIR", help="model folder replacing the bundled models")
+    p.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,  # keeps `sketchmesh --models DIR infer`
+                   help="model folder replacing the bundled models")
     p.add_argument("--smooth", type=_int_in(0, MAX_SMOOTH_ITERATIONS), default=0, metavar="N", help="Taubin smoothing iterations")
     p.add_argument("--subdivide", type=_int_in(0, MAX_SUBDIVIDE_LEVELS), default=0, metavar="N",
                    help=f"Loop subdivision levels (0..{MAX_SUBDIVIDE_LEVELS})")
@@ -87,7 +88,8 @@ def register(commands, bench) -> None:
         description="Time every inference stage over many runs for the float32 models and dynamic-int8 "
         "variants, and report each variant's error against float32.",
     )
-    b.add_argument("--models", metavar="DIR", help="model folder (default: the bundled models)")
+    b.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,
+                   help="model folder (default: the bundled models)")
     b.add_argument("--runs", type=_int_in(1, 100_000), default=50, metavar="N", help="timed runs per variant (default 50)")
     b.add_argument("--warmup", type=_int_in(0, 1000), default=3, metavar="N", help="untimed runs first (default 3)")
     b.add_argument("--threads", type=_int_in(1, 256), default=None, metavar="N", help="inference threads")

@@ -1,0 +1,390 @@
+"""Live inference off the UI thread: debounce -> worker QThread -> request ids -> stale results dropped.
+
+Pattern (as superqt's thread workers): one long-lived :class:`InferenceWorker` QObject is
+moved to a QThread owned by the :class:`InferenceController`, which lives on the GUI thread.
+The controller debounces sketch changes with a single-shot QTimer, tags each request with
+an increasing id and sends it through a queued signal. The worker skips requests already
+superseded when it reaches them (so a burst of edits costs one inference, not one per edit)
+and answers with ``resultReady(request_id, Prediction)`` or ``errorOccurred(request_id,
+message)``; the controller forwards only the answer to the newest request. The GUI thread
+never calls ``engine.predict``.
+
+:class:`EventLoopLatencyProbe` measures how late a short repeating QTimer fires on the GUI
+thread: the UI's responsiveness while inference runs (a debug figure, and a test).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from PySide6.QtCore import QElapsedTimer, QObject, Qt, QThread, QTimer, Signal, Slot
+
+from engine.errors import SketchmeshError
+
+DEFAULT_DEBOUNCE_MS = 100
+"""Quiet time after the last change before a request is sent (80-150 ms feels live)."""
+
+LIVE_WHILE_DRAWING_MAX_MS = 120.0
+"""Send requests while a stroke is still being drawn only if the last inference took less."""
+
+SHUTDOWN_WAIT_MS = 10_000
+"""How long closing waits for an inference in progress to finish."""
+
+SketchInput = object  # list[Stroke] | (256, 256) float32 raster | CanvasRaster | path
+
+
+@dataclass(frozen=True, eq=False)
+class CanvasRaster:
+    """A canvas composite (background image + strokes) that still needs framing.
+
+    The worker runs ``engine.preprocess.preprocess_raster`` on it (thinning and framing cost
+    a few milliseconds, so they stay off the GUI thread) before ``engine.predict``.
+
+    Attributes:
+        ink: (H, W) float32 in [0, 1], 1 = ink, canvas resolution, read-only.
+    """
+
+    ink: np.ndarray
+
+    def __post_init__(self) -> None:
+        a = np.array(self.ink, dtype=np.float32)
+        if a.ndim != 2:
+            raise ValueError(f"CanvasRaster ink must be (H, W), got {a.shape}")
+        a.setflags(write=False)
+        object.__setattr__(self, "ink", a)
+
+
+PRELOAD = object()
+"""Request payload that makes the worker load the engine's models (``engine.load()``) so the
+first stroke does not pay for creating the ONNX Runtime sessions, and broken models are
+reported at once."""
+
+_ORPHANS: list[tuple[QThread, QObject]] = []
+"""Worker threads still finishing an inference after their controller shut down."""
+
+
+def _release_orphan(thread: QThread) -> None:
+    _ORPHANS[:] = [(t, w) for t, w in _ORPHANS if t is not thread]
+
+
+class InferenceWorker(QObject):
+    """Runs ``engine.predict`` on its own thread; one request at a time, stale ones skipped.
+
+    Signals:
+        resultReady(int, object): (request_id, engine.pipeline.Prediction).
+        errorOccurred(int, str): (request_id, one-line message).
+        skipped(int): a request superseded before it started.
+        loaded(int): a preload request (:data:`PRELOAD`) finished without error.
+    """
+
+    resultReady = Signal(int, object)
+    errorOccurred = Signal(int, str)
+    skipped = Signal(int)
+    loaded = Signal(int)
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._latest = 0
+        self._lock = threading.Lock()
+        self._stopping = False
+        self.thread_ids: set[int] = set()
+        """Threads ``predict`` ran on (tests check it never is the GUI thread)."""
+
+    def note_latest(self, request_id: int) -> None:
+        """Called from the GUI thread: requests older than this are stale."""
+        with self._lock:
+            self._latest = max(self._latest, request_id)
+
+    def stop(self) -> None:
+        """Cooperative shutdown: skip every request not yet started."""
+        with self._lock:
+            self._stopping = True
+
+    @Slot(int, object, object)
+    def process(self, request_id: int, engine: object, sketch: SketchInput) -> None:
+        with self._lock:
+            stale = self._stopping or request_id < self._latest
+        if stale:
+            self.skipped.emit(request_id)
+            return
+        self.thread_ids.add(threading.get_ident())
+        if sketch is PRELOAD:
+            try:
+                load = getattr(engine, "load", None)
+                if load is not None:
+                    load()
+            except SketchmeshError as exc:
+                self.errorOccurred.emit(request_id, str(exc))
+            except Exception as exc:  # a broken model must not kill the worker
+                self.errorOccurred.emit(request_id, f"{type(exc).__name__}: {exc}")
+            else:
+                self.loaded.emit(request_id)
+            return
+        try:
+            if isinstance(sketch, CanvasRaster):
+                from engine.preprocess import preprocess_raster  # noqa: PLC0415
+
+                sketch = preprocess_raster(sketch.ink)
+            prediction = engine.predict(sketch, want_normals=True)
+        except SketchmeshError as exc:
+            self.errorOccurred.emit(request_id, str(exc))
+        except MemoryError:
+            self.errorOccurred.emit(request_id, "out of memory during inference")
+        except Exception as exc:  # never let a worker exception kill the thread or the app
+            self.errorOccurred.emit(request_id, f"{type(exc).__name__}: {exc}")
+        else:
+            self.resultReady.emit(request_id, prediction)
+
+
+class InferenceController(QObject):
+    """GUI-thread side: debounce, request ids, stale dropping, worker thread lifetime.
+
+    Signals:
+        predictionReady(int, object): the newest request's Prediction.
+        predictionFailed(int, str): the newest request's error message.
+        cleared(): the sketch became empty (the viewport should show nothing).
+        busyChanged(bool): whether a request is outstanding.
+    """
+
+    predictionReady = Signal(int, object)
+    predictionFailed = Signal(int, str)
+    cleared = Signal()
+    busyChanged = Signal(bool)
+    _request = Signal(int, object, object)
+
+    def __init__(self, engine: object | None = None, debounce_ms: int = DEFAULT_DEBOUNCE_MS, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._engine = engine
+        self._next_id = 0
+        self._latest_id = 0
+        self._outstanding: set[int] = set()
+        self._provider: Callable[[], SketchInput | None] | None = None
+        self.dropped_count = 0
+        """Results that arrived for a superseded request and were dropped."""
+        self.skipped_count = 0
+        """Requests the worker skipped because they were superseded before starting."""
+        self.last_roundtrip_ms: float | None = None
+        """Wall time from send to answer of the last fresh result (includes queueing)."""
+        self._sent_at: dict[int, float] = {}
+        self._debounce = QTimer(self)
+        self._debounce.setSingleShot(True)
+        self._debounce.setInterval(int(debounce_ms))
+        self._debounce.timeout.connect(self._fire)
+        self._thread = QThread()
+        self._thread.setObjectName("sketchmesh-inference")
+        self._worker = InferenceWorker()
+        self._worker.moveToThread(self._thread)
+        self._request.connect(self._worker.process, Qt.ConnectionType.QueuedConnection)
+        self._worker.resultReady.connect(self._on_result, Qt.ConnectionType.QueuedConnection)
+        self._worker.errorOccurred.connect(self._on_error, Qt.ConnectionType.QueuedConnection)
+        self._worker.skipped.connect(self._on_skipped, Qt.ConnectionType.QueuedConnection)
+        self._worker.loaded.connect(self._on_loaded, Qt.ConnectionType.QueuedConnection)
+        self._thread.start()
+        self._shut_down = False
+
+    # ---- configuration ----------------------------------------------------------------
+    @property
+    def engine(self) -> object | None:
+        return self._engine
+
+    def set_engine(self, engine: object | None) -> None:
+        """Use ``engine`` for the next requests (in-flight answers from the old one are dropped)."""
+        self._engine = engine
+        self._invalidate()
+
+    @property
+    def worker(self) -> InferenceWorker:
+        return self._worker
+
+    @property
+    def latest_id(self) -> int:
+        return self._latest_id
+
+    @property
+    def busy(self) -> bool:
+        return bool(self._outstanding) or self._debounce.isActive()
+
+    def set_debounce_ms(self, ms: int) -> None:
+        self._debounce.setInterval(int(ms))
+
+    # ---- requests ------------------------------------------------------------------------
+    def schedule(self, provider: Callable[[], SketchInput | None]) -> None:
+        """Ask for inference after the debounce delay; ``provider()`` builds the input then.
+
+        Calling again before the delay restarts it: a burst of changes makes one request.
+        Answers to requests sent before this call are dropped from now on (they describe an
+        older drawing). ``provider`` returning None means an empty sketch (the viewport is cleared).
+        """
+        if self._shut_down:
+            return
+        if self._provider is None:
+            # the sketch changed: whatever is in flight now describes an older drawing
+            self._invalidate()
+        self._provider = provider
+        self._debounce.start()
+
+    def flush(self) -> int | None:
+        """Send a scheduled request now (no waiting for the debounce); returns its id."""
+        if self._debounce.isActive():
+            self._debounce.stop()
+            return self._fire()
+        return None
+
+    def _fire(self) -> int | None:
+        provider, self._provider = self._provider, None
+        if provider is None:
+            return None
+        try:
+            sketch = provider()
+        except SketchmeshError as exc:
+            rid = self._invalidate()
+            self.predictionFailed.emit(rid, str(exc))
+            return rid
+        return self.submit(sketch)
+
+    def submit(self, sketch: SketchInput | None) -> int:
+        """Send ``sketch`` to the worker now; returns the request id. None clears the result."""
+        if self._shut_down:
+            raise RuntimeError("the inference controller has been shut down")
+        if sketch is None or (isinstance(sketch, (list, tuple)) and len(sketch) == 0):
+            rid = self._invalidate()
+            self.cleared.emit()
+            return rid
+        if isinstance(sketch, np.ndarray):
+            sketch = np.array(sketch, dtype=np.float32)  # private copy crosses the thread
+            sketch.setflags(write=False)
+        if self._engine is None:
+            rid = self._invalidate()
+            self.predictionFailed.emit(rid, "No model folder is set: choose one (File > Load models...)")
+            return rid
+        rid = self._invalidate()
+        self._outstanding.add(rid)
+        self._sent_at[rid] = time.perf_counter()
+        self.busyChanged.emit(True)
+        self._request.emit(rid, self._engine, sketch)
+        return rid
+
+    def preload(self) -> int | None:
+        """Load the engine's models on the worker now (errors arrive as predictionFailed)."""
+        if self._shut_down or self._engine is None:
+            return None
+        rid = self._invalidate()
+        self._outstanding.add(rid)
+        self.busyChanged.emit(True)
+        self._request.emit(rid, self._engine, PRELOAD)
+        return rid
+
+    def _invalidate(self) -> int:
+        self._next_id += 1
+        self._latest_id = self._next_id
+        self._worker.note_latest(self._latest_id)
+        return self._latest_id
+
+    def _finish(self, request_id: int) -> bool:
+        """Bookkeeping for an answer; returns True when it is the newest request's."""
+        self._outstanding.discard(request_id)
+        sent = self._sent_at.pop(request_id, None)
+        fresh = request_id == self._latest_id
+        if fresh and sent is not None:
+            self.last_roundtrip_ms = (time.perf_counter() - sent) * 1e3
+        if not self._outstanding:
+            self.busyChanged.emit(False)
+        return fresh
+
+    @Slot(int, object)
+    def _on_result(self, request_id: int, prediction: object) -> None:
+        if self._finish(request_id):
+            self.predictionReady.emit(request_id, prediction)
+        else:
+            self.dropped_count += 1
+
+    @Slot(int, str)
+    def _on_error(self, request_id: int, message: str) -> None:
+        if self._finish(request_id):
+            self.predictionFailed.emit(request_id, message)
+        else:
+            self.dropped_count += 1
+
+    @Slot(int)
+    def _on_loaded(self, request_id: int) -> None:
+        self._finish(request_id)
+        self.last_roundtrip_ms = None  # a load is not an inference: no live-drawing estimate from it
+
+    @Slot(int)
+    def _on_skipped(self, request_id: int) -> None:
+        self.skipped_count += 1
+        self._finish(request_id)
+
+    # ---- lifetime ------------------------------------------------------------------------
+    def shutdown(self, wait_ms: int = SHUTDOWN_WAIT_MS) -> bool:
+        """Stop the worker cooperatively: pending requests are skipped, the running one
+        finishes, the thread quits. Returns False if it did not stop within ``wait_ms``."""
+        if self._shut_down:
+            return True
+        self._shut_down = True
+        self._debounce.stop()
+        self._provider = None
+        self._worker.stop()
+        self._thread.quit()
+        stopped = bool(self._thread.wait(int(wait_ms)))
+        if stopped:
+            self._worker.deleteLater()
+        else:
+            # an inference is still running (onnxruntime cannot be interrupted): keep the thread
+            # and worker alive until it returns, so Qt never destroys a running QThread
+            _ORPHANS.append((self._thread, self._worker))
+            self._thread.finished.connect(lambda t=self._thread: _release_orphan(t))
+        return stopped
+
+
+class EventLoopLatencyProbe(QObject):
+    """Measures GUI event-loop lateness with a repeating precise QTimer.
+
+    Each tick records ``max(0, elapsed_since_last_tick - interval)`` in milliseconds: how
+    long the event loop was busy beyond the timer period. Under a blocking call on the GUI
+    thread the lateness grows to the call's duration; with inference on the worker thread
+    it stays near zero.
+    """
+
+    def __init__(self, interval_ms: int = 10, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        if interval_ms < 1:
+            raise ValueError(f"interval_ms must be >= 1, got {interval_ms}")
+        self.interval_ms = int(interval_ms)
+        self._timer = QTimer(self)
+        self._timer.setTimerType(Qt.TimerType.PreciseTimer)
+        self._timer.setInterval(self.interval_ms)
+        self._timer.timeout.connect(self._tick)
+        self._clock = QElapsedTimer()
+        self.samples_ms: list[float] = []
+
+    def start(self) -> None:
+        self.samples_ms.clear()
+        self._clock.start()
+        self._timer.start()
+
+    def stop(self) -> None:
+        self._timer.stop()
+
+    @property
+    def running(self) -> bool:
+        return self._timer.isActive()
+
+    def _tick(self) -> None:
+        elapsed = self._clock.nsecsElapsed() / 1e6
+        self._clock.restart()
+        self.samples_ms.append(max(0.0, elapsed - self.interval_ms))
+        if len(self.samples_ms) > 10_000:  # bounded memory in a long session
+            del self.samples_ms[:5_000]
+
+    @property
+    def max_ms(self) -> float:
+        return max(self.samples_ms) if self.samples_ms else 0.0
+
+    def percentile_ms(self, q: float) -> float:
+        """The q-th percentile (0-100) of the recorded lateness, 0 when nothing was recorded."""
+        return float(np.percentile(self.samples_ms, q)) if self.samples_ms else 0.0

@@ -1,0 +1,422 @@
+"""The sketch canvas, the eraser geometry, history, the sketch file format and settings.
+
+Canvas tests drive the real widget with simulated mouse events (pytest-qt, Xvfb); no VTK
+window is created here, so this file stays fast.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from gui_helpers import draw_stroke, gui_isolation, line_points, make_stroke
+from PySide6.QtCore import QEvent, QPoint, QPointF, QSettings, Qt
+from PySide6.QtGui import QPointingDevice, QTabletEvent
+from PySide6.QtWidgets import QApplication
+
+from app.autosave import (
+    Autosaver,
+    read_sketch_file,
+    sketch_from_dict,
+    sketch_to_dict,
+    write_sketch_file,
+)
+from app.canvas import (
+    TOOL_ERASER,
+    BackgroundLayer,
+    SketchCanvas,
+    erase_strokes,
+    fit_rect,
+    guide_rect,
+    point_segment_distances,
+    resample_polyline,
+)
+from app.history import History, SketchState
+from app.settings import MAX_BRUSH_WIDTH, AppSettings, open_settings
+from engine.camera import FRAME_MARGIN
+from engine.errors import SketchInputError
+from engine.preprocess import preprocess_raster, rasterize_strokes
+
+GEOM_TOL = 1e-9
+"""float64 tolerance for exact geometric identities (points kept by the eraser, distances)."""
+
+
+@pytest.fixture(autouse=True)
+def dialogs(qapp, tmp_path, monkeypatch):
+    """Isolated settings/autosave, recorded QMessageBox calls, leak check (tests/gui_helpers.py)."""
+    with gui_isolation(tmp_path, monkeypatch) as recorder:
+        yield recorder
+
+
+@pytest.fixture
+def canvas(qtbot):
+    c = SketchCanvas()
+    qtbot.addWidget(c)
+    c.resize(300, 240)
+    c.show()
+    qtbot.waitExposed(c)
+    return c
+
+
+# ------------------------------------------------------------------ pure geometry
+
+
+def _dense_distance(points, path, samples=20001):
+    """Slow reference: distance to a densely sampled polyline."""
+    path = np.asarray(path, np.float64)
+    seg_len = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    s = np.linspace(0, seg_len.sum(), samples)
+    cum = np.concatenate([[0], np.cumsum(seg_len)])
+    idx = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg_len) - 1)
+    t = (s - cum[idx]) / seg_len[idx]
+    dense = path[idx] + t[:, None] * (path[idx + 1] - path[idx])
+    return np.array([np.min(np.linalg.norm(dense - p, axis=1)) for p in points])
+
+
+def test_point_segment_distances_matches_dense_reference():
+    rng = np.random.default_rng(0)
+    path = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 5.0], [3.0, 9.0]])
+    pts = rng.uniform(-5, 15, size=(50, 2))
+    got = point_segment_distances(pts, path)
+    ref = _dense_distance(pts, path)
+    assert np.max(np.abs(got - ref)) < 2e-3  # the reference samples every ~1e-3 units
+    # hand-computed: a point above the middle of the first segment, and a single-point path
+    assert point_segment_distances(np.array([[5.0, 3.0]]), path[:2])[0] == pytest.approx(3.0, abs=GEOM_TOL)
+    assert point_segment_distances(np.array([[3.0, 4.0]]), np.zeros((1, 2)))[0] == pytest.approx(5.0, abs=GEOM_TOL)
+    # degenerate (zero-length) segments stay finite
+    assert np.all(np.isfinite(point_segment_distances(pts, np.array([[1.0, 1.0], [1.0, 1.0]]))))
+
+
+def test_resample_polyline_keeps_points_and_bounds_spacing():
+    pts = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 0.5]])
+    pr = np.array([0.0, 1.0, 0.5])
+    out, opr = resample_polyline(pts, pr, 1.5)
+    assert np.max(np.linalg.norm(np.diff(out, axis=0), axis=1)) <= 1.5 + GEOM_TOL
+    for p in pts:  # originals are kept
+        assert np.min(np.linalg.norm(out - p, axis=1)) < GEOM_TOL
+    # pressure is linear along the first segment: at x = 5 it is 0.5
+    k = np.argmin(np.abs(out[:, 0] - 5.0) + np.abs(out[:, 1]))
+    assert opr[k] == pytest.approx(out[k, 0] / 10.0, abs=GEOM_TOL)
+    with pytest.raises(ValueError, match="spacing"):
+        resample_polyline(pts, None, 0.0)
+
+
+def test_erase_splits_a_long_segment_without_points_under_the_eraser():
+    """A 2-point stroke crossing the eraser is cut in two even though no recorded point is hit."""
+    s = make_stroke([[0.0, 0.0], [100.0, 0.0]], width=2.0)
+    eraser = np.array([[50.0, -20.0], [50.0, 20.0]])
+    out, changed = erase_strokes((s,), eraser, 5.0)
+    assert changed and len(out) == 2
+    reach = 5.0 + 1.0  # radius + half the stroke width
+    left, right = sorted(out, key=lambda t: t.points[0, 0])
+    assert left.points[0].tolist() == [0.0, 0.0] and right.points[-1].tolist() == [100.0, 0.0]
+    assert left.points[:, 0].max() <= 50.0 - reach + GEOM_TOL
+    assert right.points[:, 0].min() >= 50.0 + reach - GEOM_TOL
+    # the pieces stay on the original line; the gap exceeds the eraser's reach by at most one
+    # resample step (radius / 2 = 2.5) on each side
+    assert np.all(np.abs(np.concatenate([left.points[:, 1], right.points[:, 1]])) < GEOM_TOL)
+    assert right.points[:, 0].min() - left.points[:, 0].max() <= 2 * reach + 2 * 2.5 + GEOM_TOL
+
+
+def test_erase_untouched_strokes_are_the_same_objects_and_miss_is_a_noop():
+    a = make_stroke([[0.0, 0.0], [10.0, 0.0]])
+    b = make_stroke([[0.0, 100.0], [40.0, 100.0]])
+    out, changed = erase_strokes((a, b), np.array([[20.0, 100.0]]), 3.0)
+    assert changed and out[0] is a and len(out) == 3  # b split in two
+    assert out[1].points[-1, 0] <= 20.0 - 4.5 + GEOM_TOL and out[2].points[0, 0] >= 20.0 + 4.5 - GEOM_TOL
+    out2, changed2 = erase_strokes((a,), np.array([[500.0, 500.0]]), 3.0)
+    assert not changed2 and out2[0] is a
+    with pytest.raises(ValueError):
+        erase_strokes((a,), np.array([[0.0, 0.0]]), float("nan"))
+
+
+def test_erase_keeps_pressure_aligned_and_removes_fully_covered_strokes():
+    s = make_stroke([[0.0, 0.0], [20.0, 0.0]])
+    s = type(s)(s.points, np.array([0.2, 1.0]), 3.0)
+    out, _ = erase_strokes((s,), np.array([[20.0, 0.0]]), 4.0)
+    (piece,) = out
+    assert piece.pressure is not None and len(piece.pressure) == len(piece.points)
+    np.testing.assert_allclose(piece.pressure, 0.2 + 0.8 * piece.points[:, 0] / 20.0, atol=GEOM_TOL)
+    gone, changed = erase_strokes((s,), np.array([[0.0, 0.0], [20.0, 0.0]]), 4.0)
+    assert changed and gone == ()
+
+
+def test_fit_and_guide_rects():
+    assert fit_rect(200, 100, 400, 400) == (0.0, 100.0, 400.0, 200.0)
+    x, y, w, h = guide_rect(400, 300)
+    assert w == h == pytest.approx(300 * (1 - 2 * FRAME_MARGIN))
+    assert (x + w / 2, y + h / 2) == pytest.approx((200, 150))
+    with pytest.raises(ValueError):
+        fit_rect(0, 1, 1, 1)
+
+
+# ------------------------------------------------------------------ history
+
+
+def test_history_push_undo_redo_and_branching():
+    h = History()
+    s1 = SketchState((make_stroke([[0, 0], [1, 1]]),), None, "Stroke")
+    s2 = SketchState(s1.strokes + (make_stroke([[2, 2], [3, 3]]),), None, "Stroke")
+    assert h.push(s1) and h.push(s2)
+    assert not h.push(SketchState(s2.strokes, None, "noop"))  # same content: no undo step
+    assert h.undo() is s1 and h.undo().is_empty and not h.can_undo
+    assert h.undo().is_empty  # undo at the start is a no-op
+    assert h.redo() is s1 and h.can_redo
+    s3 = SketchState((), None, "Clear")
+    h.push(s3)
+    assert not h.can_redo and h.current is s3 and len(h) == 3
+    with pytest.raises(TypeError):
+        SketchState(([1, 2],))
+
+
+# ------------------------------------------------------------------ canvas widget
+
+
+def test_mouse_stroke_is_recorded_as_vectors_and_rasterised(canvas, qtbot):
+    with qtbot.waitSignal(canvas.sketchChanged, timeout=2000):
+        draw_stroke(canvas, line_points(40, 60, 240, 60, 20))
+    (s,) = canvas.strokes()
+    assert s.points[0].tolist() == [40.0, 60.0] and s.points[-1].tolist() == [240.0, 60.0]
+    assert np.all(s.points[:, 1] == 60.0) and np.all(np.diff(s.points[:, 0]) > 0)
+    assert s.width == canvas.brush_width and s.pressure is None
+    raster = canvas.render_raster()
+    assert raster.shape == (240, 300) and raster.dtype == np.float32
+    assert raster[60, 50:230].min() > 0.5  # ink along the line
+    assert raster[100:, :].max() == 0.0 and raster[:50, :].max() == 0.0  # nothing elsewhere
+    assert raster[60, :35].max() < 0.05  # round cap reaches only half the width before x = 40
+
+
+def test_jitter_points_are_dropped_and_a_click_is_a_dot(canvas):
+    draw_stroke(canvas, [(100, 100), (100.2, 100.1), (100, 100)])
+    (s,) = canvas.strokes()
+    assert len(s.points) == 1
+    r = canvas.render_raster()
+    assert r[100, 100] > 0.5 and r[100, 110] == 0.0
+
+
+def test_undo_redo_and_eraser_sequence_is_exact(canvas, qtbot):
+    draw_stroke(canvas, line_points(20, 50, 280, 50, 30))
+    draw_stroke(canvas, line_points(20, 150, 280, 150, 30))
+    original = canvas.strokes()
+    canvas.set_tool(TOOL_ERASER)
+    canvas.set_eraser_width(10.0)
+    draw_stroke(canvas, line_points(150, 20, 150, 200, 10))  # crosses both strokes
+    erased = canvas.strokes()
+    assert len(erased) == 4  # each stroke split in two
+    for piece in erased:
+        assert point_segment_distances(piece.points, np.array([[150.0, 20.0], [150.0, 200.0]])).min() > 5.0
+    assert canvas.render_raster()[50, 150] == 0.0 and canvas.render_raster()[50, 100] > 0.5
+    canvas.undo()
+    assert canvas.strokes() == original  # the very same Stroke objects
+    canvas.undo()
+    assert len(canvas.strokes()) == 1 and canvas.strokes()[0] is original[0]
+    canvas.redo()
+    canvas.redo()
+    assert canvas.strokes() == erased
+    canvas.clear()
+    assert canvas.strokes() == () and canvas.is_empty
+    canvas.undo()
+    assert canvas.strokes() == erased
+
+
+def test_eraser_on_nothing_adds_no_undo_step(canvas):
+    draw_stroke(canvas, line_points(20, 50, 100, 50))
+    n = len(canvas.history)
+    canvas.set_tool(TOOL_ERASER)
+    draw_stroke(canvas, line_points(200, 200, 220, 220))
+    assert len(canvas.history) == n
+
+
+def test_tablet_pressure_is_recorded(canvas):
+    dev = QPointingDevice.primaryPointingDevice()
+
+    def send(kind, x, y, pressure):
+        ev = QTabletEvent(kind, dev, QPointF(x, y), canvas.mapToGlobal(QPointF(x, y)), pressure, 0.0, 0.0, 0.0, 0.0, 0.0,
+                          Qt.KeyboardModifier.NoModifier, Qt.MouseButton.LeftButton, Qt.MouseButton.LeftButton)
+        QApplication.sendEvent(canvas, ev)
+
+    canvas.set_brush_width(10.0)
+    send(QEvent.Type.TabletPress, 50, 50, 0.2)
+    send(QEvent.Type.TabletMove, 100, 50, 0.6)
+    send(QEvent.Type.TabletMove, 150, 50, 1.0)
+    send(QEvent.Type.TabletRelease, 150, 50, 0.0)
+    (s,) = canvas.strokes()
+    np.testing.assert_allclose(s.pressure, [0.2, 0.6, 1.0], atol=1e-6)
+    r = canvas.render_raster()
+    # width follows pressure: segment widths 10 * (0.2 + 0.6) / 2 = 4 px and 10 * (0.6 + 1) / 2 = 8 px
+    assert r[:, 75].sum() == pytest.approx(4.0, abs=0.6)
+    assert r[:, 125].sum() == pytest.approx(8.0, abs=0.6)
+
+
+_TOUCH_DEVICE = []
+
+
+def _touch_device():
+    """One touch device per process: Qt owns it, so the Python wrapper must never be collected."""
+    from PySide6.QtTest import QTest
+
+    if not _TOUCH_DEVICE:
+        _TOUCH_DEVICE.append(QTest.createTouchDevice())
+    return _TOUCH_DEVICE[0]
+
+
+def test_touch_draws_a_stroke(canvas, qtbot):
+    from PySide6.QtTest import QTest
+
+    dev = _touch_device()
+    QTest.touchEvent(canvas, dev).press(0, QPoint(30, 30), canvas).commit()
+    QTest.touchEvent(canvas, dev).move(0, QPoint(90, 30), canvas).commit()
+    QTest.touchEvent(canvas, dev).release(0, QPoint(150, 30), canvas).commit()
+    qtbot.waitUntil(lambda: len(canvas.strokes()) == 1, timeout=2000)
+    np.testing.assert_allclose(canvas.strokes()[0].points[[0, -1]], [[30, 30], [150, 30]], atol=1.0)
+
+
+def test_model_input_strokes_and_background_composite(canvas):
+    assert canvas.model_input() is None
+    draw_stroke(canvas, line_points(40, 40, 200, 200))
+    strokes = canvas.model_input()
+    assert isinstance(strokes, list) and strokes[0] is canvas.strokes()[0]
+    assert rasterize_strokes(strokes).shape == (256, 256)
+    # a background image: a vertical bar of ink
+    ink = np.zeros((100, 100), np.float32)
+    ink[10:90, 45:55] = 1.0
+    canvas.set_background_ink(ink)
+    bg = canvas.background
+    assert isinstance(bg, BackgroundLayer)
+    assert bg.rect == pytest.approx(fit_rect(100, 100, 300, 240))
+    assert canvas.composite_size() == (300, 240)  # the image is shown larger than it is: canvas resolution
+    composite = canvas.model_input(preprocess=False)
+    assert composite.shape == (240, 300)
+    x, y, w, h = bg.rect
+    cx = int(x + w / 2)
+    assert composite[int(y + h / 2), cx] > 0.5  # the background's bar
+    assert composite[int(y + 0.05 * h), cx] < 0.5  # above the bar
+    assert composite[120, 120] > 0.5  # the stroke
+    np.testing.assert_array_equal(canvas.model_input(), preprocess_raster(composite))
+    canvas.clear_strokes()  # background alone: the image's own ink, exactly as loaded
+    np.testing.assert_array_equal(canvas.model_input(preprocess=False), bg.ink)
+    canvas.undo()
+    canvas.undo()  # removing the background is one undo step
+    assert canvas.background is None and len(canvas.strokes()) == 1
+
+
+def test_large_image_composite_keeps_thin_lines(canvas):
+    """A 1-px line in a 2400x2000 scan shown 8x smaller still reaches the model."""
+    ink = np.zeros((2000, 2400), np.float32)
+    ink[1000, 200:2200] = 1.0  # 1 px thick horizontal line
+    ink[300:1700, 1200] = 1.0  # and a vertical one
+    canvas.set_background_ink(ink)
+    draw_stroke(canvas, line_points(60, 60, 80, 80))
+    cw, ch = canvas.composite_size()
+    assert cw * ch <= 4_000_000 and cw > canvas.width()
+    comp = canvas.model_input(preprocess=False)
+    assert comp.shape == (ch, cw)
+    shown_small = canvas.render_raster()  # the canvas-resolution composite would lose the lines
+    assert (shown_small > 0.5).sum() < (comp > 0.5).sum()
+    x, y, w, h = canvas.background.rect
+    s = cw / canvas.width()
+    row = int(round((y + h * 1000.5 / 2000) * s))
+    assert comp[row - 1 : row + 2, int((x + w / 2 - w / 4) * s)].max() > 0.5  # the thin line survived
+
+
+def test_resize_keeps_vectors_and_changes_raster_size(canvas, qtbot):
+    draw_stroke(canvas, line_points(20, 20, 100, 100))
+    before = canvas.strokes()
+    canvas.resize(400, 320)
+    qtbot.waitUntil(lambda: canvas.width() == 400, timeout=2000)
+    assert canvas.strokes() == before
+    assert canvas.render_raster().shape == (320, 400)
+    assert canvas.render_raster((64, 48)).shape == (48, 64)
+
+
+def test_bad_widths_and_tools_are_rejected(canvas):
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError):
+            canvas.set_brush_width(bad)
+    with pytest.raises(ValueError, match="tool"):
+        canvas.set_tool("spray")
+
+
+# ------------------------------------------------------------------ sketch files and autosave
+
+
+def _state_with_background():
+    ink = np.zeros((40, 60), np.float32)
+    ink[5:35, 10:20] = 1.0
+    strokes = (make_stroke([[1.5, 2.25], [30.0, 40.0], [50.0, 10.0]], 4.0),
+               type(make_stroke([[0, 0]]))(np.array([[5.0, 5.0], [6.0, 7.0]]), np.array([0.25, 0.75]), 2.0))
+    return SketchState(strokes, BackgroundLayer(ink, (10.0, 20.0, 120.0, 80.0)))
+
+
+def test_sketch_document_round_trip(tmp_path):
+    st = _state_with_background()
+    path = tmp_path / "a.sketch.json"
+    write_sketch_file(path, st, (300, 200))
+    back, size = read_sketch_file(path)
+    assert size == (300, 200)
+    for a, b in zip(st.strokes, back.strokes):
+        np.testing.assert_array_equal(a.points, b.points)
+        assert a.width == b.width
+        assert (a.pressure is None) == (b.pressure is None)
+    np.testing.assert_array_equal(back.strokes[1].pressure, [0.25, 0.75])
+    assert back.background.rect == st.background.rect
+    np.testing.assert_allclose(back.background.ink, st.background.ink, atol=1 / 255)  # 8-bit PNG
+    assert json.loads(path.read_text())["format"] == "sketchmesh-sketch"
+    assert sketch_from_dict(sketch_to_dict(SketchState(), (10, 10)))[0].is_empty
+
+
+@pytest.mark.parametrize("content, match", [
+    ("{not json", "cannot read"),
+    ('{"format": "other"}', "not a Sketchmesh sketch"),
+    ('{"format": "sketchmesh-sketch", "version": 99}', "version"),
+    ('{"format": "sketchmesh-sketch", "version": 1, "strokes": [{"points": [[0, "x"]]}]}', "malformed"),
+    ('{"format": "sketchmesh-sketch", "version": 1, "strokes": [3]}', "malformed"),
+    ('{"format": "sketchmesh-sketch", "version": 1, "background": {"rect": [0,0,1,1], "png_base64": "!!"}}', "background"),
+])
+def test_corrupt_sketch_files_raise_clear_errors(tmp_path, content, match):
+    p = tmp_path / "bad.sketch.json"
+    p.write_text(content)
+    with pytest.raises(SketchInputError, match=match):
+        read_sketch_file(p)
+    with pytest.raises(SketchInputError, match="no such file"):
+        read_sketch_file(tmp_path / "missing.sketch.json")
+
+
+def test_autosaver_debounces_writes_and_removes_file_for_empty_sketch(qtbot, tmp_path):
+    saver = Autosaver(tmp_path / "auto", delay_ms=50)
+    st = _state_with_background()
+    for _ in range(5):
+        saver.schedule(st, (100, 100))
+    with qtbot.waitSignal(saver.saved, timeout=2000):
+        pass
+    assert saver.write_count == 1 and saver.has_recovery()
+    assert saver.load_recovery()[0].strokes[0].points.tolist() == st.strokes[0].points.tolist()
+    assert not list((tmp_path / "auto").glob(".*.tmp"))  # atomic write left no temp file
+    saver.schedule(SketchState(), (100, 100))
+    saver.flush()
+    assert not saver.has_recovery()
+
+
+# ------------------------------------------------------------------ settings
+
+
+def test_settings_round_trip_in_isolated_location(tmp_path):
+    s = AppSettings.load()
+    assert s == AppSettings()  # nothing leaked in from the user's real settings
+    s.brush_width = 7.5
+    s.models_dir = "/some/models"
+    s.geometry = b"\x01\x02"
+    s.show_guide = False
+    s.save()
+    assert str(tmp_path) in open_settings().fileName()
+    back = AppSettings.load()
+    assert (back.brush_width, back.models_dir, back.geometry, back.show_guide) == (7.5, "/some/models", b"\x01\x02", False)
+    store = open_settings()
+    store.setValue("brush/width", "nan")
+    store.sync()
+    assert AppSettings.load().brush_width == AppSettings().brush_width
+    store.setValue("brush/width", 1e9)
+    store.sync()
+    assert AppSettings.load().brush_width == MAX_BRUSH_WIDTH
+    assert QSettings  # imported for the isolation fixture's setPath
