@@ -1,0 +1,181 @@
+"""3D/2D metrics against hand-computed values and a slow generalised-winding-number reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from engine.icosphere import icosphere
+from engine.mesh import Mesh
+from training.metrics import (
+    chamfer_l1,
+    normal_consistency,
+    sample_surface,
+    silhouette_iou,
+    solid_voxels,
+    surface_metrics,
+    voxel_centers,
+    voxel_iou,
+)
+
+
+def _mesh(tm: trimesh.Trimesh) -> Mesh:
+    return Mesh(tm.vertices, tm.faces)
+
+
+def _box(extents, offset=(0.0, 0.0, 0.0)) -> Mesh:
+    return _mesh(trimesh.creation.box(extents).apply_translation(offset))
+
+
+def _square(z: float = 0.0, size: float = 0.6) -> Mesh:
+    h = size / 2
+    v = np.array([[-h, -h, z], [h, -h, z], [h, h, z], [-h, h, z]])
+    return Mesh(v, np.array([[0, 1, 2], [0, 2, 3]]))
+
+
+def slow_winding_number(mesh: Mesh, points: np.ndarray) -> np.ndarray:
+    """Generalised winding number (Jacobson et al. 2013) by the Van Oosterom-Strackee solid angle, one point at a time."""
+    tri = mesh.vertices.astype(np.float64)[mesh.faces]
+    out = np.zeros(len(points))
+    for n, p in enumerate(points):
+        a, b, c = tri[:, 0] - p, tri[:, 1] - p, tri[:, 2] - p
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        det = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + np.einsum("ij,ij->i", c, a) * lb
+        out[n] = np.sum(2.0 * np.arctan2(det, den)) / (4.0 * np.pi)
+    return out
+
+
+def _grid_points(resolution: int) -> np.ndarray:
+    c = voxel_centers(resolution)
+    return np.stack(np.meshgrid(c, c, c, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+# ---------------------------------------------------------------- voxel IoU
+
+
+def test_offset_cubes_hand_computed():
+    a = _box((0.5, 0.5, 0.5))
+    b = _box((0.5, 0.5, 0.5), (0.125, 0.0, 0.0))
+    # side 0.5 covers exactly 16 cells at R = 32; a shift of 0.125 is 4 cells: IoU = 12 / 20
+    assert solid_voxels(a, 32).sum() == 16**3
+    assert voxel_iou(a, b, 32) == pytest.approx(0.6, abs=1e-12)
+    # a shift that is not a whole number of cells: continuous IoU (0.5 - 0.1) / (0.5 + 0.1), within a cell layer
+    c = _box((0.5, 0.5, 0.5), (0.1, 0.0, 0.0))
+    assert abs(voxel_iou(a, c, 32) - 0.4 / 0.6) <= 2.0 / 16
+
+
+def test_voxel_grid_is_indexed_xyz():
+    # a 0.25 x 0.125 x 0.0625 box with its low corner at (0, 0.125, 0.25): at R = 16 the cells
+    # i in [8, 12), j in [10, 12), k in [12, 13) -- one cell layer along z, distinct along each axis
+    box = _box((0.25, 0.125, 0.0625), (0.125, 0.1875, 0.28125))
+    got = solid_voxels(box, 16)
+    expected = np.zeros((16, 16, 16), dtype=bool)
+    expected[8:12, 10:12, 12:13] = True
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_sphere_self_and_disjoint():
+    s = icosphere(3)
+    assert voxel_iou(s, s) == 1.0
+    expected_cells = (4 / 3) * np.pi * 16**3 * 0.98  # the level-3 polyhedron is ~2 % smaller than the sphere
+    assert abs(solid_voxels(s, 32).sum() - expected_cells) / expected_cells < 0.03
+    a = _box((0.3, 0.3, 0.3), (-0.3, 0.0, 0.0))
+    b = _box((0.3, 0.3, 0.3), (0.3, 0.0, 0.0))
+    assert voxel_iou(a, b) == 0.0
+    empty = Mesh(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+    assert voxel_iou(empty, empty) == 1.0
+    assert voxel_iou(empty, a) == 0.0
+
+
+@pytest.mark.parametrize("name", ["rotated_box", "overlapping_spheres", "open_sphere", "inverted"])
+def test_solid_voxels_match_slow_winding_number(name):
+    R = 10
+    if name == "rotated_box":
+        tm = trimesh.creation.box((0.6, 0.35, 0.5))
+        tm.apply_transform(trimesh.transformations.euler_matrix(0.3, 0.5, 0.2))
+        mesh = _mesh(tm)
+    elif name == "overlapping_spheres":  # self-intersecting: the overlap has winding number 2
+        parts = [trimesh.creation.icosphere(2, 0.25).apply_translation((dx, 0.0, 0.0)) for dx in (-0.12, 0.12)]
+        mesh = _mesh(trimesh.util.concatenate(parts))
+    elif name == "open_sphere":  # non-watertight: a few faces removed
+        s = icosphere(2, 0.45)
+        mesh = Mesh(s.vertices, s.faces[6:])
+    else:  # all faces wound inwards
+        s = icosphere(2, 0.45)
+        mesh = Mesh(s.vertices, s.faces[:, ::-1])
+    w = slow_winding_number(mesh, _grid_points(R)).reshape(R, R, R)
+    reference = np.abs(w) >= 0.5
+    got = solid_voxels(mesh, R)
+    mismatch = np.argwhere(got != reference)
+    # allow cells whose centre is almost on the surface (|w| near 0.5), none elsewhere
+    assert all(abs(abs(w[tuple(i)]) - 0.5) < 0.2 for i in mismatch), f"mismatches at {mismatch[:5].tolist()}"
+    assert len(mismatch) <= 0.01 * R**3
+    if name == "overlapping_spheres":
+        assert got[R // 2, R // 2, R // 2]  # the overlap counts as solid (ray parity would call it empty)
+
+
+def test_solid_voxels_rejects_bad_resolution():
+    with pytest.raises(ValueError, match="resolution"):
+        solid_voxels(icosphere(1), 0)
+    with pytest.raises(TypeError, match="Mesh"):
+        voxel_iou("a", icosphere(1))  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- surface metrics
+
+
+def test_sample_surface_is_on_the_surface_and_deterministic():
+    box = _box((0.5, 0.3, 0.2))
+    p, n = sample_surface(box, 2000, seed=3)
+    assert p.shape == (2000, 3) and n.shape == (2000, 3)
+    half = np.array([0.25, 0.15, 0.1])
+    tol = 1e-6  # Mesh vertices are float32
+    assert np.all(np.abs(p) <= half + tol)
+    assert np.all(np.max(np.abs(p) / half, axis=1) > 1 - tol)  # every point on some face
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
+    p2, _ = sample_surface(box, 2000, seed=3)
+    np.testing.assert_array_equal(p, p2)
+    # area weighting: the two 0.5 x 0.3 faces hold 0.3 / 0.62 of the area
+    frac = np.mean(np.abs(np.abs(p[:, 2]) - 0.1) < tol)
+    assert abs(frac - 0.15 / 0.31) < 0.04
+    with pytest.raises(ValueError, match="zero surface area"):
+        sample_surface(Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]])), 10)
+
+
+def test_chamfer_and_normal_consistency_of_parallel_and_crossed_planes():
+    a, b = _square(0.0), _square(0.1)
+    c = chamfer_l1(a, b, n_points=4000)
+    assert 0.1 <= c <= 0.1 + 0.01  # exact 0.1 plus the in-plane sampling gap
+    assert normal_consistency(a, b, n_points=4000) == pytest.approx(1.0)
+    crossed = Mesh(np.asarray(a.vertices)[:, [2, 1, 0]], a.faces)  # the square rotated into the x = 0 plane
+    assert normal_consistency(a, crossed, n_points=4000) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_surface_metrics_match_brute_force():
+    a, b = icosphere(1, 0.4), _box((0.5, 0.6, 0.4))
+    m = surface_metrics(a, b, n_points=300, seed=7)
+    pa, na = sample_surface(a, 300, 7)
+    pb, nb = sample_surface(b, 300, 8)
+    d = np.linalg.norm(pa[:, None] - pb[None], axis=2)  # (300, 300)
+    acc, comp = d.min(1).mean(), d.min(0).mean()
+    nc = 0.5 * (np.abs((na * nb[d.argmin(1)]).sum(1)).mean() + np.abs((nb * na[d.argmin(0)]).sum(1)).mean())
+    assert m["chamfer_l1"] == pytest.approx(0.5 * (acc + comp), rel=1e-12)
+    assert m["normal_consistency"] == pytest.approx(nc, rel=1e-12)
+
+
+# ---------------------------------------------------------------- silhouette IoU
+
+
+def test_silhouette_iou_rectangles_and_edge_cases():
+    a = np.zeros((10, 12), dtype=bool)
+    b = np.zeros_like(a)
+    a[2:6, 2:10] = True  # 32 px
+    b[4:8, 6:12] = True  # 24 px, overlap 2 x 4
+    assert silhouette_iou(a, b) == pytest.approx(8 / 48)
+    assert silhouette_iou(a.astype(np.float32) * 0.9, b) == pytest.approx(8 / 48)  # binarised at 0.5
+    assert silhouette_iou(np.zeros((4, 4), bool), np.zeros((4, 4), bool)) == 1.0
+    assert silhouette_iou(a, np.zeros_like(a)) == 0.0
+    with pytest.raises(ValueError, match=r"\(10, 12\) and \(12, 10\)"):
+        silhouette_iou(a, a.T)

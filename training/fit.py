@@ -1,0 +1,388 @@
+"""Fit the icosphere template to one target mesh through the differentiable rasterizer only.
+
+This is the proof that the renderer's gradients (paper Eq. 1) and the losses (Eq. 2-6) work:
+starting from :func:`engine.icosphere.icosphere`, Adam moves a per-vertex local offset and one
+global offset (the paper's deformation ``v + dv_local + dv_global``) so that the normal images
+and silhouettes rendered from N views match the target's, rendered by the same rasterizer. No
+3D supervision is used; 3D metrics (:mod:`training.metrics`) are only computed at the end.
+
+Views (:func:`fit_views`): ``N - N_extra`` azimuths evenly spread at the paper's 30 degree
+elevation, plus ``N_extra = min(2, N // 3)`` views that constrain depth and the underside: one
+from high above (elevation 75) and one from below (elevation -30). Each camera is framed on
+the target with :func:`engine.camera.frame_camera` exactly as the data generator frames its
+views, so the target fills ``1 - 2 * FRAME_MARGIN`` of every image.
+
+The target is first normalised with :func:`engine.camera.normalize_vertices` (centred, longest
+side 1), the frame the template and the metrics use.
+
+``sketchmesh bench fit`` (argparse in :mod:`training.cli_bench`) calls :func:`main_fit`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.camera import Camera, frame_camera, look_at, normalize_vertices
+from engine.errors import MeshInputError, SketchmeshError
+from engine.fileio import atomic_write_text
+from engine.icosphere import PAPER_LEVEL, icosphere
+from engine.mesh import Mesh, unique_edges
+from training._torch import require_torch
+from training.losses import (
+    NORMAL_REFERENCE_PIXELS,
+    LossWeights,
+    dihedral_indices,
+    dihedral_smoothness_loss,
+    edge_loss,
+    normal_loss,
+    silhouette_iou_loss,
+    total_loss,
+)
+from training.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
+
+FIT_ELEVATION_DEG = 30.0
+TOP_ELEVATION_DEG = 75.0
+BOTTOM_ELEVATION_DEG = -30.0
+
+DEFAULT_LR = 0.01
+"""Adam step size on the offsets (normalised units: the shape spans 1)."""
+
+DEFAULT_FIT_WEIGHTS = LossWeights(normal=0.002, silhouette=0.9, edge=0.9, smoothness=0.01)
+"""The paper's weights (the normal term is rescaled to 64 x 64 pixels, see :mod:`training.losses`)."""
+
+INIT_JITTER = 1e-3
+"""Std of the seeded random perturbation of the template's vertices at the start."""
+
+DEFAULT_FIT_THREADS = 1
+"""torch intra-op threads for ``bench fit``: its tensors are small (642 vertices, N x 64 x 64 images),
+so extra threads buy little, and on a busy 2-core machine they spin: measured 100 iterations
+(6 views, 48 x 48) at 3.2 s CPU / 7.4 s wall with 1 thread against 24.5 s CPU / 52 s wall with 2."""
+
+MAX_RESOLUTION = 512
+MAX_VIEWS = 64
+MAX_ITERS = 100_000
+LR_DECAY_START = 0.6
+"""Fraction of the iterations after which the step size decays (cosine) to 10 % at the end."""
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """What :func:`fit_mesh` returns.
+
+    Attributes:
+        mesh: the fitted mesh (template topology), in the normalised target frame.
+        target: the normalised target mesh the fit and metrics used.
+        silhouette_iou: per-view IoU of the fitted mesh's silhouette against the target's,
+            at the fit resolution, one float per view (same order as ``views``).
+        voxel_iou: solid voxel IoU at 32^3 against the normalised target.
+        chamfer_l1: Chamfer-L1 (Occupancy Networks definition) against the normalised target.
+        normal_consistency: normal consistency against the normalised target (1 is best).
+        seconds: wall time of the fit: target rendering, the iterations and the final render
+            (one-time imports and the 3D metrics excluded).
+        views: (azimuth_deg, elevation_deg) per view.
+        history: one dict per iteration: ``iter``, ``seconds`` (elapsed), the unweighted loss
+            terms, ``total`` and ``silhouette_iou`` (mean over views of the hard IoU of that
+            iteration's render, before the step).
+    """
+
+    mesh: Mesh
+    target: Mesh
+    silhouette_iou: list[float]
+    voxel_iou: float
+    chamfer_l1: float
+    normal_consistency: float
+    seconds: float
+    views: list[tuple[float, float]]
+    history: list[dict[str, float]] = field(default_factory=list)
+
+
+def fit_views(n: int) -> list[tuple[float, float]]:
+    """(azimuth_deg, elevation_deg) of ``n`` fit views (see the module docstring)."""
+    if not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_VIEWS:
+        raise ValueError(f"number of views must be an integer in [1, {MAX_VIEWS}], got {n!r}")
+    n_extra = min(2, n // 3)
+    n_main = n - n_extra
+    views = [(360.0 * k / n_main, FIT_ELEVATION_DEG) for k in range(n_main)]
+    half = 180.0 / n_main
+    extras = [(half, TOP_ELEVATION_DEG), (180.0 + half, BOTTOM_ELEVATION_DEG)]
+    return views + extras[:n_extra]
+
+
+def fit_cameras(target: Mesh, views: list[tuple[float, float]]) -> list[Camera]:
+    """One camera per view, framed on the (normalised) target like the data generator's views."""
+    pts = np.asarray(target.vertices, dtype=np.float64)
+    return [frame_camera(look_at(az, el), pts) for az, el in views]
+
+
+def normalized_mesh(mesh: Mesh) -> Mesh:
+    """The mesh centred and scaled by :func:`engine.camera.normalize_vertices`."""
+    return mesh.with_vertices(normalize_vertices(mesh.vertices))
+
+
+def fit_mesh(
+    target: Mesh,
+    *,
+    views: int = 8,
+    iters: int = 300,
+    resolution: int = 64,
+    lr: float = DEFAULT_LR,
+    weights: LossWeights | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    level: int = PAPER_LEVEL,
+    delta: float = 1.0,
+    shading: str = "flat",
+    voxel_resolution: int = DEFAULT_VOXEL_RESOLUTION,
+) -> FitResult:
+    """Deform the icosphere so its renders match the target's from ``views`` views.
+
+    Args:
+        target: the target mesh (any frame; it is normalised first).
+        views: number of views N (see :func:`fit_views`).
+        iters: Adam iterations (0 returns the template's metrics).
+        resolution: rendered image side S (normal images (N, 3, S, S), silhouettes (N, S, S)).
+        lr: Adam step size.
+        weights: Eq. 6 weights (default :data:`DEFAULT_FIT_WEIGHTS`, the paper's).
+        seed: seeds the template jitter (:data:`INIT_JITTER`) and the surface sampling.
+        progress: show a tqdm bar.
+        level: icosphere subdivision level (3: 642 vertices / 1280 faces, the paper's).
+        delta: the rasterizer's Eq. 1 gradient strength.
+        shading: ``"flat"`` or ``"smooth"`` normals in the rendered images (target and fit).
+        voxel_resolution: grid of the final voxel IoU.
+
+    Returns:
+        :class:`FitResult`.
+
+    Raises:
+        ValueError: bad arguments or a target with no faces / zero size.
+    """
+    torch = require_torch()
+    if not isinstance(target, Mesh):
+        raise ValueError(f"fit_mesh target must be an engine.mesh.Mesh, got {type(target).__name__}")
+    if target.num_faces == 0:
+        raise ValueError("fit_mesh target has no faces")
+    if not isinstance(iters, (int, np.integer)) or not 0 <= iters <= MAX_ITERS:
+        raise ValueError(f"iters must be an integer in [0, {MAX_ITERS}], got {iters!r}")
+    if not isinstance(resolution, (int, np.integer)) or not 8 <= resolution <= MAX_RESOLUTION:
+        raise ValueError(f"resolution must be an integer in [8, {MAX_RESOLUTION}], got {resolution!r}")
+    if not (isinstance(lr, (int, float)) and math.isfinite(lr) and lr > 0):
+        raise ValueError(f"lr must be finite and > 0, got {lr!r}")
+    weights = weights if weights is not None else DEFAULT_FIT_WEIGHTS
+    if not isinstance(weights, LossWeights):
+        raise ValueError(f"fit_mesh weights must be a LossWeights, got {type(weights).__name__}")
+    view_list = fit_views(views)
+
+    from training.render import cameras_to_tensor, rasterize
+
+    dtype = torch.float32
+    template = icosphere(level)
+    gen = torch.Generator().manual_seed(int(seed))
+    base = torch.tensor(np.array(template.vertices), dtype=dtype)  # (V, 3)
+    base = base + INIT_JITTER * torch.randn(base.shape, generator=gen, dtype=dtype)
+    faces = torch.tensor(np.array(template.faces), dtype=torch.int64)
+    edges = torch.as_tensor(unique_edges(template.faces))
+    t64 = template.vertices.astype(np.float64)
+    template_lengths = torch.as_tensor(np.linalg.norm(t64[edges[:, 1]] - t64[edges[:, 0]], axis=1), dtype=dtype)
+    quads = torch.as_tensor(dihedral_indices(template.faces))
+    local = torch.zeros_like(base, requires_grad=True)  # (V, 3)
+    global_offset = torch.zeros(3, dtype=dtype, requires_grad=True)
+    optimizer = torch.optim.Adam([local, global_offset], lr=float(lr))  # first use imports torch._dynamo (~2 s)
+
+    start = time.perf_counter()  # timed from here: target rendering, the iterations, the final render
+    target_n = normalized_mesh(target)
+    cams = fit_cameras(target_n, view_list)
+    cam_t = cameras_to_tensor(cams, dtype=dtype)  # (N, 16)
+    n_views = len(cams)
+    with torch.no_grad():
+        tv = torch.tensor(np.array(target_n.vertices), dtype=dtype)[None].expand(n_views, -1, -1)
+        tf = torch.tensor(np.array(target_n.faces), dtype=torch.int64)
+        tgt = rasterize(tv, tf, cam_t, resolution, delta=delta, shading=shading)
+        target_normals, target_sil = tgt.normals.clone(), tgt.silhouette.clone()  # (N, 3, S, S), (N, S, S)
+    decay_from = int(LR_DECAY_START * iters)
+
+    def lr_factor(step: int) -> float:
+        if step < decay_from or iters <= decay_from:
+            return 1.0
+        t = (step - decay_from) / max(1, iters - decay_from)
+        return 0.1 + 0.9 * 0.5 * (1.0 + math.cos(math.pi * t))
+
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lr_factor)
+    normal_scale = NORMAL_REFERENCE_PIXELS / float(resolution * resolution)
+
+    history: list[dict[str, float]] = []
+    bar = None
+    if progress and iters > 0:
+        from tqdm import tqdm
+
+        bar = tqdm(total=iters, desc="fit", unit="it", leave=False)
+    try:
+        for it in range(iters):
+            verts = (base + local + global_offset)[None]  # (1, V, 3)
+            out = rasterize(verts.expand(n_views, -1, -1), faces, cam_t, resolution, delta=delta, shading=shading)
+            terms = {
+                "normal": normal_loss(out.normals, target_normals) * normal_scale,
+                "silhouette": silhouette_iou_loss(out.silhouette, target_sil),
+                "edge": edge_loss(verts, edges, template_lengths),
+                "smoothness": dihedral_smoothness_loss(verts, quads),
+            }
+            loss, log = total_loss(terms, weights)
+            if not math.isfinite(log["total"]):
+                raise FloatingPointError(f"fit loss became non-finite at iteration {it}: {log}")
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            scheduler.step()
+            with torch.no_grad():
+                hard = out.silhouette > 0.5
+                tgt_hard = target_sil > 0.5
+                inter = (hard & tgt_hard).flatten(1).sum(1).double()
+                union = (hard | tgt_hard).flatten(1).sum(1).double()
+                mean_iou = float(torch.where(union > 0, inter / union.clamp(min=1), torch.ones_like(union)).mean())
+            log.update(iter=float(it), seconds=time.perf_counter() - start, silhouette_iou=mean_iou)
+            history.append(log)
+            if bar is not None:
+                bar.set_postfix(loss=f"{log['total']:.4f}", iou=f"{mean_iou:.3f}", refresh=False)
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    with torch.no_grad():
+        final_v = (base + local + global_offset).detach()
+        out = rasterize(final_v[None].expand(n_views, -1, -1), faces, cam_t, resolution, delta=delta, shading=shading)
+    seconds = time.perf_counter() - start
+    fitted = Mesh(final_v.numpy().astype(np.float32), template.faces)
+    sil = [silhouette_iou(out.silhouette[k].numpy() > 0.5, target_sil[k].numpy() > 0.5) for k in range(n_views)]
+    try:
+        surf = surface_metrics(fitted, target_n, seed=int(seed))
+    except ValueError:  # a fit collapsed to zero area: worst scores rather than a crash
+        surf = {"chamfer_l1": float("nan"), "normal_consistency": 0.0}
+    return FitResult(
+        mesh=fitted,
+        target=target_n,
+        silhouette_iou=sil,
+        voxel_iou=voxel_iou(fitted, target_n, voxel_resolution),
+        chamfer_l1=surf["chamfer_l1"],
+        normal_consistency=surf["normal_consistency"],
+        seconds=seconds,
+        views=view_list,
+        history=history,
+    )
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def load_target_mesh(path: str) -> Mesh:
+    """Read any mesh file trimesh reads (scenes are merged); MeshInputError names the path on failure."""
+    import os
+
+    import trimesh
+
+    if not os.path.isfile(path):
+        raise MeshInputError(f"mesh file not found: {path}")
+    try:
+        tm = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise MeshInputError(f"cannot read mesh file {path}: {type(exc).__name__}: {exc}") from None
+    faces = getattr(tm, "faces", None)
+    vertices = getattr(tm, "vertices", None)
+    if faces is None or vertices is None or len(faces) == 0:
+        raise MeshInputError(f"mesh file {path} has no triangles")
+    try:
+        mesh = Mesh(np.asarray(vertices), np.asarray(faces))
+        normalize_vertices(mesh.vertices)
+    except ValueError as exc:
+        raise MeshInputError(f"mesh file {path} is not usable: {exc}") from None
+    return mesh
+
+
+def _int_arg(args, name: str, lo: int, hi: int, default: int) -> int:
+    value = getattr(args, name, None)
+    value = default if value is None else value
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not lo <= value <= hi:
+        raise SketchmeshError(f"--{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
+def format_fit_report(result: FitResult, iters: int, resolution: int) -> str:
+    """The table ``sketchmesh bench fit`` prints: per-view IoU, IoU against time, 3D metrics."""
+    lines = [f"{'view':>4}  {'azimuth':>7}  {'elev':>5}  {'silhouette IoU':>14}"]
+    for k, ((az, el), iou) in enumerate(zip(result.views, result.silhouette_iou)):
+        lines.append(f"{k:>4}  {az:>7.1f}  {el:>5.1f}  {iou:>14.4f}")
+    lines.append("")
+    if result.history:
+        lines.append(f"{'iter':>6}  {'seconds':>8}  {'mean sil IoU':>12}  {'loss':>9}")
+        marks = sorted({0, *(int(round(f * (len(result.history) - 1))) for f in (0.1, 0.25, 0.5, 0.75, 1.0))})
+        for i in marks:
+            h = result.history[i]
+            lines.append(f"{int(h['iter']):>6}  {h['seconds']:>8.2f}  {h['silhouette_iou']:>12.4f}  {h['total']:>9.4f}")
+        lines.append("")
+    per_iter = result.seconds / iters if iters else float("nan")
+    lines += [
+        f"min / mean silhouette IoU : {min(result.silhouette_iou):.4f} / {float(np.mean(result.silhouette_iou)):.4f}",
+        f"voxel IoU (32^3)          : {result.voxel_iou:.4f}",
+        f"chamfer-L1 / normal cons. : {result.chamfer_l1:.4f} / {result.normal_consistency:.4f}",
+        f"time                      : {result.seconds:.2f} s ({iters} iterations, {per_iter * 1e3:.1f} ms/iter, "
+        f"{len(result.views)} views at {resolution}x{resolution})",
+    ]
+    return "\n".join(lines)
+
+
+def main_fit(args) -> int:
+    """``sketchmesh bench fit``: fit the icosphere to ``--target`` and report accuracy against time.
+
+    Reads ``args.target`` (path), ``args.views``, ``args.iters``, ``args.resolution``,
+    ``args.json`` (path or None) and ``args.seed``. Prints the per-view silhouette IoU, the IoU
+    against elapsed time, voxel IoU at 32^3, Chamfer-L1 and the time; with ``--json`` writes
+    (atomically) a record with at least ``silhouette_iou`` (list), ``voxel_iou`` and ``seconds``.
+    """
+    torch = require_torch()
+    target_path = getattr(args, "target", None)
+    if not target_path:
+        raise SketchmeshError("bench fit needs --target MESH_FILE")
+    views = _int_arg(args, "views", 1, MAX_VIEWS, 8)
+    iters = _int_arg(args, "iters", 0, MAX_ITERS, 300)
+    resolution = _int_arg(args, "resolution", 8, MAX_RESOLUTION, 64)
+    seed = _int_arg(args, "seed", 0, 2**31 - 1, 0)
+    level = _int_arg(args, "level", 0, 5, PAPER_LEVEL)  # optional flag; the paper's level 3 when absent
+    threads = _int_arg(args, "threads", 1, 256, DEFAULT_FIT_THREADS)  # optional flag
+    json_path = getattr(args, "json", None)
+    target = load_target_mesh(str(target_path))
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        result = fit_mesh(target, views=views, iters=iters, resolution=resolution, seed=seed, progress=True, level=level)
+    finally:
+        torch.set_num_threads(before)
+    print(f"fit: {target_path} ({target.num_vertices} vertices, {target.num_faces} faces) "
+          f"<- icosphere level {level} ({result.mesh.num_vertices} vertices)")
+    print(format_fit_report(result, iters, resolution))
+    if json_path:
+        record = {
+            "benchmark": "fit",
+            "target": str(target_path),
+            "views": [{"azimuth_deg": az, "elevation_deg": el} for az, el in result.views],
+            "iters": iters,
+            "resolution": resolution,
+            "seed": seed,
+            "template_level": level,
+            "silhouette_iou": result.silhouette_iou,
+            "voxel_iou": result.voxel_iou,
+            "chamfer_l1": result.chamfer_l1,
+            "normal_consistency": result.normal_consistency,
+            "seconds": result.seconds,
+            "threads": threads,
+            "ms_per_iter": 1e3 * result.seconds / iters if iters else None,
+            "history": [
+                {k: h[k] for k in ("iter", "seconds", "silhouette_iou", "total")} for h in result.history
+            ],
+        }
+        atomic_write_text(json_path, json.dumps(record, indent=2) + "\n")
+        print(f"wrote {json_path}")
+    return 0

@@ -1,0 +1,418 @@
+"""The mesh predictor's losses: paper Eq. 2-6 (Xiang et al., section 3.2).
+
+Pure functions of tensors do the math; :class:`MeshLoss` only holds the template's
+topology (built once, vectorised) and the weights. Image conventions (normal encoding
+``(n + 1) / 2`` with background 0, silhouettes 1 on the shape) are those of
+:mod:`engine.camera`.
+
+Equations (``B`` batch, ``V`` vertices, ``E`` edges, ``P`` adjacent face pairs, ``H W``
+pixels):
+
+* Eq. 2, normal loss ``L_n = ||N_hat - N||_1`` -- :func:`normal_loss`.
+* Eq. 3, silhouette IoU loss ``L_s = 1 - |S_hat * S|_1 / |S_hat + S - S_hat * S|_1`` --
+  :func:`silhouette_iou_loss`.
+* Eq. 4, edge (as-rigid-as-possible) loss ``L_e = 1/E sum_i | |e_hat_i| - |e_i| |`` --
+  :func:`edge_loss`.
+* Eq. 5, dihedral smoothness loss ``L_m = sum_(i,j) (1 + cos<f_i, f_j>)^2`` --
+  :func:`dihedral_smoothness_loss`.
+* Eq. 6, ``L = l_n L_n + l_s L_s + l_e L_e + l_m L_m`` -- :func:`total_loss`,
+  :class:`MeshLoss`, weights in :class:`LossWeights`.
+
+Every term is reduced per sample and then averaged over the batch, so the total does not
+depend on the batch size.
+
+Reduction of the normal term. The paper writes Eq. 2 as an L1 *norm* and weights it by
+``l_n = 0.002`` against ``l_s = 0.9`` for a loss in [0, 1]: with a per-pixel mean the
+normal term would be ~1e-4 and do nothing, with a sum over the 3 x 64 x 64 values of the
+paper's 64 x 64 training images it is O(1) -- the same order as the silhouette term. So
+:func:`normal_loss` sums over (C, H, W) by default. A plain sum grows with the image size,
+so :class:`MeshLoss` rescales it to the paper's 64 x 64 pixel count
+(:data:`NORMAL_REFERENCE_PIXELS`): ``lambda_n = 0.002`` means the same at 32, 64 or 128.
+
+Numerical stability: norms use a clamped square root (finite value and gradient at zero
+length); the dihedral term works in a per-sample scale-normalised frame (the scale is
+detached), so it is scale invariant from 1e-6 to 1e6 and finite for coincident vertices
+and zero-area faces; the IoU term is defined as 0 when both silhouettes are empty.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from engine.mesh import Mesh, adjacent_face_pairs, unique_edges
+
+NORMAL_REFERENCE_PIXELS = 64 * 64
+"""Pixel count the paper's ``lambda_n = 0.002`` was set for (64 x 64 normal images)."""
+
+IOU_EPS = 1e-6
+"""Added to intersection and union (in pixel units): IoU of two empty silhouettes is 1 (loss 0)."""
+
+NORM_MIN_SQ = 1e-30
+"""Squared lengths are clamped to at least this before a square root (gradient stays finite at 0)."""
+
+DIHEDRAL_EPS = 1e-8
+"""Added to squared lengths in the scale-normalised dihedral frame (mean edge length 1): a
+degenerate face (opposite vertex on the shared edge line) gives cos = 0 instead of NaN, and the
+gradient there is bounded by ~1 / sqrt(DIHEDRAL_EPS) = 1e4 (relative to the mesh scale)."""
+
+SCALE_MIN = 1e-30
+"""Per-sample mesh scales below this (every vertex coincident) are replaced by 1."""
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def _check_image_pair(pred: torch.Tensor, target: torch.Tensor, ndim: int, what: str, layout: str) -> None:
+    if not isinstance(pred, torch.Tensor) or not isinstance(target, torch.Tensor):
+        raise TypeError(f"{what} expects tensors, got {type(pred).__name__} and {type(target).__name__}")
+    if pred.ndim != ndim or pred.shape != target.shape:
+        raise ValueError(f"{what} expects pred and target of the same shape {layout}, got {tuple(pred.shape)} and {tuple(target.shape)}")
+    if not pred.is_floating_point():
+        raise ValueError(f"{what} expects floating-point images, got {pred.dtype}")
+
+
+def _check_vertices(vertices: torch.Tensor, what: str) -> None:
+    if not isinstance(vertices, torch.Tensor) or vertices.ndim != 3 or vertices.shape[-1] != 3:
+        shape = tuple(vertices.shape) if isinstance(vertices, torch.Tensor) else type(vertices).__name__
+        raise ValueError(f"{what} expects vertices (B, V, 3), got {shape}")
+    if not vertices.is_floating_point():
+        raise ValueError(f"{what} expects floating-point vertices, got {vertices.dtype}")
+
+
+def _check_index(index: torch.Tensor, width: int, num_vertices: int, what: str, name: str) -> None:
+    if not isinstance(index, torch.Tensor) or index.ndim != 2 or index.shape[1] != width:
+        shape = tuple(index.shape) if isinstance(index, torch.Tensor) else type(index).__name__
+        raise ValueError(f"{what} expects {name} (N, {width}) int64, got {shape}")
+    if index.dtype != torch.int64:
+        raise ValueError(f"{what} expects {name} of dtype int64, got {index.dtype}")
+    if index.numel() and (int(index.min()) < 0 or int(index.max()) >= num_vertices):
+        raise ValueError(f"{what}: {name} indices must be in [0, {num_vertices}), got [{int(index.min())}, {int(index.max())}]")
+
+
+def safe_norm(x: torch.Tensor, dim: int = -1) -> torch.Tensor:
+    """Euclidean norm along ``dim`` with a finite gradient at zero length (the gradient there is 0)."""
+    return torch.sqrt(torch.clamp((x * x).sum(dim), min=NORM_MIN_SQ))
+
+
+# --------------------------------------------------------------------------- Eq. 2
+
+
+def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum") -> torch.Tensor:
+    """Eq. 2: L1 distance between normal images, per sample, averaged over the batch.
+
+    Args:
+        pred: (B, 3, H, W) rendered normal image, encoded ``(n + 1) / 2``, background 0.
+        target: (B, 3, H, W) ground-truth normal image, same encoding.
+        reduction: ``"sum"`` (default, the paper's L1 norm: sum over C, H, W) or ``"mean"``
+            (mean over C, H, W). See the module docstring for why the sum is the default.
+
+    Returns:
+        () scalar tensor, ``mean_b reduce_chw |pred - target|``.
+    """
+    _check_image_pair(pred, target, 4, "normal_loss", "(B, 3, H, W)")
+    if pred.shape[1] != 3:
+        raise ValueError(f"normal_loss expects 3 channels (B, 3, H, W), got {tuple(pred.shape)}")
+    diff = (pred - target).abs().flatten(1)
+    if reduction == "sum":
+        per_sample = diff.sum(1)
+    elif reduction == "mean":
+        per_sample = diff.mean(1)
+    else:
+        raise ValueError(f"normal_loss reduction must be 'sum' or 'mean', got {reduction!r}")
+    return per_sample.mean()
+
+
+# --------------------------------------------------------------------------- Eq. 3
+
+
+def silhouette_iou_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = IOU_EPS) -> torch.Tensor:
+    """Eq. 3: one minus the soft intersection-over-union of silhouettes, averaged over the batch.
+
+    Per sample, with ``I = sum(S_hat * S)`` and ``U = sum(S_hat + S - S_hat * S)`` over pixels::
+
+        L_s = 1 - (I + eps) / (U + eps)
+
+    For silhouettes in [0, 1], ``U >= I >= 0`` so ``L_s`` is in [0, 1]. The ``eps`` in the
+    numerator as well as the denominator defines the both-empty case: two empty silhouettes
+    match perfectly, loss 0, with finite gradients (the denominator is at least ``eps``). When
+    the union is a handful of pixels or more, ``eps`` (1e-6 pixel) changes the value by < 1e-6.
+
+    Args:
+        pred: (B, H, W) rendered silhouette in [0, 1].
+        target: (B, H, W) ground-truth silhouette in [0, 1].
+        eps: > 0, in pixel units.
+
+    Returns:
+        () scalar tensor.
+    """
+    _check_image_pair(pred, target, 3, "silhouette_iou_loss", "(B, H, W)")
+    if not (math.isfinite(eps) and eps > 0):
+        raise ValueError(f"silhouette_iou_loss eps must be finite and > 0, got {eps}")
+    p, t = pred.flatten(1), target.flatten(1)
+    inter = (p * t).sum(1)
+    union = (p + t - p * t).sum(1)
+    return (1.0 - (inter + eps) / (union + eps)).mean()
+
+
+# --------------------------------------------------------------------------- Eq. 4
+
+
+def edge_lengths(vertices: torch.Tensor, edges: torch.Tensor) -> torch.Tensor:
+    """(B, E) lengths of ``edges`` (E, 2) int64 on ``vertices`` (B, V, 3) (finite gradient at length 0)."""
+    _check_vertices(vertices, "edge_lengths")
+    _check_index(edges, 2, vertices.shape[1], "edge_lengths", "edges")
+    return safe_norm(vertices[:, edges[:, 1]] - vertices[:, edges[:, 0]])
+
+
+def edge_loss(vertices: torch.Tensor, edges: torch.Tensor, template_lengths: torch.Tensor) -> torch.Tensor:
+    """Eq. 4: mean absolute change of edge length against the template, averaged over the batch.
+
+    ``L_e = 1/E sum_i | |e_hat_i| - |e_i| |``: ``e_hat_i`` the current edge, ``e_i`` the same
+    edge on the template. Coincident vertices give a finite value and gradient (the norm's
+    square root is clamped, so the gradient of a zero-length edge is 0, not NaN).
+
+    Args:
+        vertices: (B, V, 3) current vertex positions.
+        edges: (E, 2) int64 vertex indices (e.g. :func:`engine.mesh.unique_edges`).
+        template_lengths: (E,) template edge lengths, same dtype family as ``vertices``.
+
+    Returns:
+        () scalar tensor.
+    """
+    _check_vertices(vertices, "edge_loss")
+    _check_index(edges, 2, vertices.shape[1], "edge_loss", "edges")
+    if not isinstance(template_lengths, torch.Tensor) or template_lengths.shape != (edges.shape[0],):
+        got = tuple(template_lengths.shape) if isinstance(template_lengths, torch.Tensor) else type(template_lengths).__name__
+        raise ValueError(f"edge_loss expects template_lengths ({edges.shape[0]},), got {got}")
+    return _edge_loss(vertices, edges, template_lengths)
+
+
+def _edge_loss(vertices: torch.Tensor, edges: torch.Tensor, template_lengths: torch.Tensor) -> torch.Tensor:
+    """:func:`edge_loss` without the input checks (for callers holding validated topology)."""
+    if edges.shape[0] == 0:
+        return vertices.sum() * 0.0
+    lengths = safe_norm(vertices[:, edges[:, 1]] - vertices[:, edges[:, 0]])  # (B, E)
+    return (lengths - template_lengths.to(lengths.dtype)).abs().mean(1).mean()
+
+
+# --------------------------------------------------------------------------- Eq. 5
+
+
+def dihedral_indices(faces: np.ndarray) -> np.ndarray:
+    """(P, 4) int64 ``(a, b, c0, c1)`` per adjacent face pair, built once from the template's faces.
+
+    Concretely, row p says faces f0 = (a, b, c0) and f1 (containing a, b, c1) share the edge
+    (a, b), in f0's winding; ``c0`` and ``c1`` are the vertices opposite that edge. Built from
+    :func:`engine.mesh.adjacent_face_pairs`, vectorised.
+
+    Args:
+        faces: (F, 3) int64 faces.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise ValueError(f"faces must be (F, 3), got {f.shape}")
+    pairs, edges = adjacent_face_pairs(f)
+    if len(pairs) == 0:
+        return np.zeros((0, 4), dtype=np.int64)
+    f0, f1 = f[pairs[:, 0]], f[pairs[:, 1]]  # (P, 3) each
+
+    def opposite(tri: np.ndarray) -> np.ndarray:
+        other = (tri != edges[:, :1]) & (tri != edges[:, 1:])  # (P, 3)
+        if not np.all(other.sum(1) >= 1):
+            raise ValueError("faces contain a triangle with a repeated vertex index on a shared edge")
+        return tri[np.arange(len(tri)), np.argmax(other, axis=1)]
+
+    return np.stack([edges[:, 0], edges[:, 1], opposite(f0), opposite(f1)], axis=1)
+
+
+def dihedral_cosines(vertices: torch.Tensor, quads: torch.Tensor, eps: float = DIHEDRAL_EPS) -> torch.Tensor:
+    """(B, P) cosine of the dihedral angle of each adjacent face pair.
+
+    For a pair sharing edge ``e = b - a`` with opposite vertices ``c0`` and ``c1``, take the
+    components of ``c0 - a`` and ``c1 - a`` perpendicular to the edge, ``n0`` and ``n1``: they
+    point from the edge into each face's half-plane, so their angle is the dihedral angle
+    measured through the surface (as in the Neural Mesh Renderer / Soft Rasterizer
+    smoothness loss). A flat surface gives 180 degrees (cos = -1); a fold to 90 degrees
+    gives cos = 0; a face folded back onto its neighbour gives cos = 1.
+
+    Stability: lengths are divided by a per-sample, detached scale (root mean square shared
+    edge length), then ``eps`` is added to every squared length. Degenerate pairs (opposite
+    vertex on the edge line, or a zero-length edge) give a finite cosine in [-1, 1].
+
+    Args:
+        vertices: (B, V, 3).
+        quads: (P, 4) int64 from :func:`dihedral_indices`.
+        eps: > 0, in the normalised frame (squared-length units, mean edge length 1).
+    """
+    _check_vertices(vertices, "dihedral_cosines")
+    _check_index(quads, 4, vertices.shape[1], "dihedral_cosines", "quads")
+    if not (math.isfinite(eps) and eps >= 0):
+        raise ValueError(f"dihedral eps must be finite and >= 0, got {eps}")
+    return _dihedral_cosines(vertices, quads, eps)
+
+
+def _dihedral_cosines(vertices: torch.Tensor, quads: torch.Tensor, eps: float) -> torch.Tensor:
+    """:func:`dihedral_cosines` without the input checks."""
+    a = vertices[:, quads[:, 0]]  # (B, P, 3)
+    e = vertices[:, quads[:, 1]] - a
+    u0 = vertices[:, quads[:, 2]] - a
+    u1 = vertices[:, quads[:, 3]] - a
+    with torch.no_grad():
+        scale = torch.sqrt((e * e).sum(-1).mean(1) if quads.shape[0] else e.new_ones(vertices.shape[0]))  # (B,)
+        scale = torch.where(torch.isfinite(scale) & (scale > SCALE_MIN), scale, torch.ones_like(scale))
+    inv = (1.0 / scale)[:, None, None]
+    e, u0, u1 = e * inv, u0 * inv, u1 * inv
+    ee = (e * e).sum(-1, keepdim=True) + eps
+    n0 = u0 - ((u0 * e).sum(-1, keepdim=True) / ee) * e
+    n1 = u1 - ((u1 * e).sum(-1, keepdim=True) / ee) * e
+    n0 = n0 / torch.sqrt((n0 * n0).sum(-1, keepdim=True) + eps)
+    n1 = n1 / torch.sqrt((n1 * n1).sum(-1, keepdim=True) + eps)
+    return (n0 * n1).sum(-1).clamp(-1.0, 1.0)
+
+
+def dihedral_smoothness_loss(vertices: torch.Tensor, quads: torch.Tensor, eps: float = DIHEDRAL_EPS) -> torch.Tensor:
+    """Eq. 5: ``sum over adjacent face pairs of (1 + cos<f_i, f_j>)^2``, averaged over the batch.
+
+    0 for a flat surface, 1 per pair folded to 90 degrees, 4 per pair folded flat back onto
+    itself. Scale invariant (see :func:`dihedral_cosines`). A sum, as in the paper (and NMR /
+    SoftRas); the paper's ``lambda_m = 0.01`` is set for that.
+
+    Args:
+        vertices: (B, V, 3).
+        quads: (P, 4) int64 from :func:`dihedral_indices`.
+        eps: see :func:`dihedral_cosines`.
+
+    Returns:
+        () scalar tensor.
+    """
+    cos = dihedral_cosines(vertices, quads, eps)
+    return ((1.0 + cos) ** 2).sum(1).mean()
+
+
+def _dihedral_smoothness_loss(vertices: torch.Tensor, quads: torch.Tensor, eps: float = DIHEDRAL_EPS) -> torch.Tensor:
+    """:func:`dihedral_smoothness_loss` without the input checks."""
+    return ((1.0 + _dihedral_cosines(vertices, quads, eps)) ** 2).sum(1).mean()
+
+
+# --------------------------------------------------------------------------- Eq. 6
+
+
+@dataclass(frozen=True)
+class LossWeights:
+    """Weights of Eq. 6; the defaults are the paper's (section 4.1).
+
+    Attributes:
+        normal: lambda_n, on the normal L1 sum rescaled to 64 x 64 pixels.
+        silhouette: lambda_s, on 1 - IoU.
+        edge: lambda_e, on the mean absolute edge-length change.
+        smoothness: lambda_m, on the dihedral sum.
+    """
+
+    normal: float = 0.002
+    silhouette: float = 0.9
+    edge: float = 0.9
+    smoothness: float = 0.01
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value) or value < 0:
+                raise ValueError(f"loss weight {name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+
+def total_loss(terms: dict[str, torch.Tensor], weights: LossWeights) -> tuple[torch.Tensor, dict[str, float]]:
+    """Eq. 6: weighted sum of the terms present in ``terms``.
+
+    Args:
+        terms: any of ``"normal"``, ``"silhouette"``, ``"edge"``, ``"smoothness"`` -> () tensors.
+        weights: the lambdas.
+
+    Returns:
+        total: () tensor, ``sum_k weights.k * terms[k]`` (a weight of 0 drops the term's graph).
+        log: the unweighted terms and ``"total"`` as detached Python floats.
+    """
+    w = asdict(weights)
+    unknown = set(terms) - set(w)
+    if unknown:
+        raise ValueError(f"unknown loss terms {sorted(unknown)}; expected some of {sorted(w)}")
+    if not terms:
+        raise ValueError("total_loss needs at least one term")
+    parts = [w[k] * v for k, v in terms.items() if w[k] != 0.0]
+    total = torch.stack(parts).sum() if parts else next(iter(terms.values())) * 0.0
+    log = {k: float(v.detach()) for k, v in terms.items()}
+    log["total"] = float(total.detach())
+    return total, log
+
+
+class MeshLoss(nn.Module):
+    """Eq. 6 for meshes with a fixed template topology; holds only the precomputed topology.
+
+    Buffers (built once in ``__init__``, moved with ``.to()``):
+        edges: (E, 2) int64 unique edges of the template.
+        template_lengths: (E,) float32 edge lengths on the template.
+        quads: (P, 4) int64 dihedral index (see :func:`dihedral_indices`).
+
+    Args:
+        template: the template mesh (e.g. :func:`engine.icosphere.icosphere`).
+        weights: the lambdas (default: the paper's).
+        normal_reference_pixels: the normal L1 sum is multiplied by
+            ``normal_reference_pixels / (H * W)``; ``None`` keeps the plain sum.
+    """
+
+    def __init__(self, template: Mesh, weights: LossWeights | None = None,
+                 normal_reference_pixels: int | None = NORMAL_REFERENCE_PIXELS) -> None:
+        super().__init__()
+        if not isinstance(template, Mesh):
+            raise TypeError(f"MeshLoss template must be an engine.mesh.Mesh, got {type(template).__name__}")
+        self.weights = weights if weights is not None else LossWeights()
+        self.normal_reference_pixels = normal_reference_pixels
+        edges = unique_edges(template.faces)
+        v = template.vertices.astype(np.float64)
+        lengths = np.linalg.norm(v[edges[:, 1]] - v[edges[:, 0]], axis=1)
+        self.register_buffer("edges", torch.from_numpy(edges))
+        self.register_buffer("template_lengths", torch.from_numpy(lengths.astype(np.float32)))
+        self.register_buffer("quads", torch.from_numpy(dihedral_indices(template.faces)))
+        self.num_vertices = template.num_vertices
+
+    def forward(
+        self,
+        vertices: torch.Tensor,
+        pred_normals: torch.Tensor | None = None,
+        target_normals: torch.Tensor | None = None,
+        pred_silhouette: torch.Tensor | None = None,
+        target_silhouette: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, dict[str, float]]:
+        """Compute Eq. 6.
+
+        Args:
+            vertices: (B, V, 3) predicted vertices (V = the template's).
+            pred_normals, target_normals: (B, 3, H, W) or both None (term skipped).
+            pred_silhouette, target_silhouette: (B, H, W) or both None (term skipped).
+
+        Returns:
+            total: () tensor; log: detached floats per term and ``"total"``.
+        """
+        _check_vertices(vertices, "MeshLoss")
+        if vertices.shape[1] != self.num_vertices:
+            raise ValueError(f"MeshLoss expects {self.num_vertices} vertices (the template's), got {tuple(vertices.shape)}")
+        terms: dict[str, torch.Tensor] = {}
+        if (pred_normals is None) != (target_normals is None):
+            raise ValueError("MeshLoss needs both pred_normals and target_normals, or neither")
+        if pred_normals is not None:
+            ln = normal_loss(pred_normals, target_normals, reduction="sum")
+            if self.normal_reference_pixels is not None:
+                ln = ln * (float(self.normal_reference_pixels) / (pred_normals.shape[-1] * pred_normals.shape[-2]))
+            terms["normal"] = ln
+        if (pred_silhouette is None) != (target_silhouette is None):
+            raise ValueError("MeshLoss needs both pred_silhouette and target_silhouette, or neither")
+        if pred_silhouette is not None:
+            terms["silhouette"] = silhouette_iou_loss(pred_silhouette, target_silhouette)
+        # topology buffers were validated at construction: skip the per-call range checks (no device sync)
+        terms["edge"] = _edge_loss(vertices, self.edges, self.template_lengths)
+        terms["smoothness"] = _dihedral_smoothness_loss(vertices, self.quads)
+        return total_loss(terms, self.weights)
