@@ -1,0 +1,540 @@
+"""The training dataset on disk: building it (resumable, sharded, parallel), merging shards, loading it.
+
+Format (full description in docs/DATA_FORMAT.md)::
+
+    DIR/manifest.json                      written atomically; settings + one record per shape and per view
+    DIR/shapes/<category>/<shape_id>.npz   one compressed file per shape holding all of its views
+
+Building is resumable: a shape whose file exists, opens, has every key and was rendered with
+the same settings is skipped; each shape file is written atomically (engine.fileio), so an
+interrupted run leaves no half-written file.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import warnings
+import zlib
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from engine.contract import CONVENTIONS_ID
+from engine.errors import SketchmeshError
+from engine.fileio import atomic_open, atomic_write_text
+from engine.mesh import Mesh
+
+FORMAT_ID = "sketchmesh-data-1"
+MANIFEST = "manifest.json"
+SHAPES_DIR = "shapes"
+
+SHAPE_KEYS: tuple[str, ...] = (
+    "sketch", "normals256", "silhouette256", "normals64", "silhouette64", "cameras", "azimuths", "elevations",
+    "poly_points", "poly_offsets", "poly_kinds", "view_poly_offsets", "vertices", "faces", "meta",
+)
+"""Keys every shape file holds (``sketch_aug`` is added when built with --augment-strength > 0)."""
+
+
+class DatasetError(SketchmeshError):
+    """A dataset folder is missing, corrupt, or does not match what was asked for."""
+
+
+# --------------------------------------------------------------------------- splits and jobs
+def split_of_id(category: str, shape_id: str) -> str:
+    """Deterministic 80/10/10 split of a loaded (ShapeNet / folder) shape by a hash of its id."""
+    h = zlib.crc32(f"split:{category}:{shape_id}".encode()) % 1000
+    return "train" if h < 800 else ("val" if h < 900 else "test")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One shape to render: where it comes from and where it goes."""
+
+    category: str
+    shape_id: str
+    split: str
+    source: str  # "procedural" or "file"
+    index: int = -1  # procedural index
+    path: str = ""  # mesh file for "file" sources
+
+    def load(self) -> Mesh:
+        if self.source == "procedural":
+            from training.data.shapes import make_shape
+
+            return make_shape(self.category, self.index)
+        from training.data.loaders import load_mesh_file
+
+        return load_mesh_file(self.path)
+
+
+def parse_source(source: str) -> tuple[str, str]:
+    """``procedural`` | ``shapenet:PATH`` | ``meshes:PATH`` -> (kind, path)."""
+    if source == "procedural":
+        return "procedural", ""
+    kind, sep, path = source.partition(":")
+    if not sep or kind not in ("shapenet", "meshes") or not path:
+        raise DatasetError(f"bad --source {source!r}: expected 'procedural', 'shapenet:PATH' or 'meshes:PATH'")
+    return kind, path
+
+
+def make_jobs(source: str, shapes_per_category: int | None = None, categories: Sequence[str] | None = None) -> list[Job]:
+    """Every shape of a source, sorted (category, shape_id). Raises DatasetError / MeshInputError on bad sources."""
+    kind, path = parse_source(source)
+    if kind == "procedural":
+        from training.data.shapes import CATEGORIES, shape_id, split_of
+
+        n = 10 if shapes_per_category is None else int(shapes_per_category)
+        if n <= 0:
+            raise DatasetError(f"--shapes-per-category must be > 0, got {n}")
+        cats = list(categories) if categories else list(CATEGORIES)
+        bad = sorted(set(cats) - set(CATEGORIES))
+        if bad:
+            raise DatasetError(f"unknown categories {bad}; expected some of {', '.join(CATEGORIES)}")
+        return [Job(c, shape_id(c, i), split_of(c, i), "procedural", index=i) for c in cats for i in range(n)]
+    from training.data.loaders import scan_mesh_folder, scan_shapenet
+
+    records = scan_shapenet(path, categories) if kind == "shapenet" else scan_mesh_folder(path)
+    if kind == "meshes" and categories:
+        records = [r for r in records if r.category in set(categories)]
+    jobs = []
+    per_cat: dict[str, int] = {}
+    for r in records:
+        if shapes_per_category is not None and per_cat.get(r.category, 0) >= shapes_per_category:
+            continue
+        per_cat[r.category] = per_cat.get(r.category, 0) + 1
+        sid = _safe_id(r.shape_id)
+        jobs.append(Job(r.category, sid, split_of_id(r.category, sid), "file", path=str(r.path)))
+    return jobs
+
+
+def _safe_id(s: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in s)
+
+
+def parse_shard(text: str | None) -> tuple[int, int]:
+    """``"K/N"`` (0 <= K < N) -> (K, N); None -> (0, 1)."""
+    if text is None:
+        return 0, 1
+    try:
+        k, n = (int(x) for x in text.split("/"))
+    except ValueError:
+        raise DatasetError(f"bad --shard {text!r}: expected K/N with 0 <= K < N, e.g. 0/4") from None
+    if not (n >= 1 and 0 <= k < n):
+        raise DatasetError(f"bad --shard {text!r}: expected K/N with 0 <= K < N, e.g. 0/4")
+    return k, n
+
+
+def shape_file(root: Path, category: str, shape_id: str) -> Path:
+    return Path(root) / SHAPES_DIR / category / f"{shape_id}.npz"
+
+
+# --------------------------------------------------------------------------- building
+@dataclass(frozen=True)
+class BuildSettings:
+    """Settings recorded in every shape file and the manifest; a resumed run must match them."""
+
+    size: int = 256
+    small_size: int = 64
+    num_azimuths: int = 24
+    elevations: tuple[float, ...] = (30.0,)
+    augment_strength: float = 0.0
+    seed: int = 0
+
+    def render_settings(self):
+        from training.data.render import RenderSettings
+
+        return RenderSettings(size=self.size, small_size=self.small_size, num_azimuths=self.num_azimuths,
+                              elevations=tuple(float(e) for e in self.elevations))
+
+    def to_json(self) -> str:
+        d = asdict(self)
+        d["elevations"] = [float(e) for e in self.elevations]
+        d["conventions"] = CONVENTIONS_ID
+        d["format"] = FORMAT_ID
+        return json.dumps(d, sort_keys=True)
+
+
+def _view_seed(seed: int, category: str, shape_id: str, view: int) -> list[int]:
+    return [int(seed), zlib.crc32(f"{category}/{shape_id}".encode()), int(view)]
+
+
+def render_job(job: Job, settings: BuildSettings) -> dict:
+    """Load and render one shape into the arrays of its shape file (raises on a bad mesh)."""
+    from training.data.augment import render_sketch
+    from training.data.render import quantize_unit, render_shape, view_polylines
+
+    mesh = job.load()
+    arrays = render_shape(mesh, settings.render_settings())
+    if settings.augment_strength > 0:
+        arrays["sketch_aug"] = np.stack([
+            quantize_unit(render_sketch(view_polylines(arrays, v), settings.size, settings.augment_strength,
+                                        _view_seed(settings.seed, job.category, job.shape_id, v)))
+            for v in range(len(arrays["cameras"]))
+        ])
+    meta = {"category": job.category, "shape_id": job.shape_id, "split": job.split, "source": job.source,
+            "path": job.path, "index": job.index, "settings": json.loads(settings.to_json())}
+    arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
+    return arrays
+
+
+def _readable(path: Path) -> None:
+    """Give an atomically written file (created 0600 by mkstemp) the usual umask permissions."""
+    mask = os.umask(0)
+    os.umask(mask)
+    try:
+        os.chmod(path, 0o666 & ~mask)
+    except OSError:  # not ours to change (e.g. another user's folder): leave it
+        pass
+
+
+def write_shape_file(path: Path, arrays: dict) -> None:
+    """np.savez_compressed into ``path`` atomically."""
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    with atomic_open(path, "wb") as fh:
+        fh.write(buf.getbuffer())
+    _readable(path)
+
+
+def read_meta(path: Path) -> dict | None:
+    """The ``meta`` record of a shape file, or None when the file is missing, corrupt or incomplete."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if not set(SHAPE_KEYS) <= set(z.files):
+                return None
+            meta = json.loads(str(z["meta"]))
+            meta["azimuths"] = z["azimuths"].tolist()
+            meta["elevations"] = z["elevations"].tolist()
+            return meta
+    except Exception:  # a truncated or foreign file means "not done"
+        return None
+
+
+def _is_complete(path: Path, settings: BuildSettings) -> bool:
+    meta = read_meta(path)
+    if meta is None:
+        return False
+    return json.dumps(meta.get("settings"), sort_keys=True) == settings.to_json()
+
+
+def _worker_init() -> None:
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:  # pragma: no cover - the CLI checks torch first
+        pass
+
+
+def _run_job(args: tuple[Job, BuildSettings, str]) -> tuple[Job, str | None]:
+    job, settings, root = args
+    try:
+        arrays = render_job(job, settings)
+        write_shape_file(shape_file(Path(root), job.category, job.shape_id), arrays)
+        return job, None
+    except SketchmeshError as exc:
+        return job, str(exc)
+    except Exception as exc:  # one broken shape must not stop a long build
+        return job, f"{type(exc).__name__}: {exc}"
+
+
+def build_dataset(out: str | os.PathLike, jobs: Sequence[Job], settings: BuildSettings, workers: int = 1,
+                  shard: tuple[int, int] = (0, 1), progress: bool = True) -> dict:
+    """Render the jobs of this shard into ``out`` and (re)write its manifest.
+
+    Args:
+        out: dataset folder (created).
+        jobs: all shapes (the shard takes every N-th starting at K).
+        settings: render settings (recorded; shapes rendered with other settings are redone).
+        workers: processes rendering shapes in parallel (each uses one torch thread).
+        shard: (K, N).
+        progress: show a tqdm bar.
+
+    Returns:
+        Summary dict: rendered, skipped (already complete), failed (list of (shape, reason)), views.
+    """
+    from tqdm import tqdm
+
+    root = Path(out)
+    root.mkdir(parents=True, exist_ok=True)
+    k, n = shard
+    mine = [j for idx, j in enumerate(jobs) if idx % n == k]
+    todo = [j for j in mine if not _is_complete(shape_file(root, j.category, j.shape_id), settings)]
+    failed: list[tuple[str, str]] = []
+    bar = tqdm(total=len(todo), desc=f"rendering shapes (shard {k}/{n})", unit="shape", disable=not progress)
+    args = [(j, settings, str(root)) for j in todo]
+    if workers > 1 and len(todo) > 1:
+        import multiprocessing as mp
+
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(workers, initializer=_worker_init) as pool:
+            for job, err in pool.imap_unordered(_run_job, args):
+                if err:
+                    failed.append((f"{job.category}/{job.shape_id}", err))
+                    warnings.warn(f"skipping {job.category}/{job.shape_id}: {err}", stacklevel=2)
+                bar.update(1)
+    else:
+        for a in args:
+            job, err = _run_job(a)
+            if err:
+                failed.append((f"{job.category}/{job.shape_id}", err))
+                warnings.warn(f"skipping {job.category}/{job.shape_id}: {err}", stacklevel=2)
+            bar.update(1)
+    bar.close()
+    if failed:
+        warnings.warn(f"{len(failed)} of {len(todo)} shapes failed and were skipped", stacklevel=2)
+    manifest = write_manifest(root, settings)
+    return {"rendered": len(todo) - len(failed), "skipped": len(mine) - len(todo), "failed": failed,
+            "shapes": len(manifest["shapes"]), "views": len(manifest["views"])}
+
+
+def write_manifest(root: str | os.PathLike, settings: BuildSettings | None = None) -> dict:
+    """Scan ``root/shapes`` and write ``root/manifest.json`` atomically (complete files only)."""
+    root = Path(root)
+    shapes, views = [], []
+    recorded = None
+    for path in sorted((root / SHAPES_DIR).glob("*/*.npz")):
+        meta = read_meta(path)
+        if meta is None:
+            warnings.warn(f"ignoring incomplete or corrupt shape file {path}", stacklevel=2)
+            continue
+        if settings is not None and json.dumps(meta["settings"], sort_keys=True) != settings.to_json():
+            warnings.warn(f"ignoring {path}: rendered with other settings", stacklevel=2)
+            continue
+        recorded = recorded or meta["settings"]
+        if meta["settings"] != recorded:
+            raise DatasetError(f"{path} was rendered with settings that differ from the other shapes")
+        rel = str(path.relative_to(root))
+        shapes.append({"category": meta["category"], "shape_id": meta["shape_id"], "split": meta["split"],
+                       "file": rel, "num_views": len(meta["azimuths"])})
+        for v, (az, el) in enumerate(zip(meta["azimuths"], meta["elevations"])):
+            views.append({"category": meta["category"], "shape_id": meta["shape_id"], "split": meta["split"],
+                          "azimuth": az, "elevation": el, "file": rel, "view": v})
+    manifest = {"format": FORMAT_ID, "conventions": CONVENTIONS_ID,
+                "settings": recorded if recorded is not None else (json.loads(settings.to_json()) if settings else None),
+                "categories": sorted({s["category"] for s in shapes}), "shapes": shapes, "views": views}
+    atomic_write_text(root / MANIFEST, json.dumps(manifest, indent=1))
+    _readable(root / MANIFEST)
+    return manifest
+
+
+def merge_datasets(out: str | os.PathLike, shard_dirs: Sequence[str | os.PathLike]) -> dict:
+    """Merge shard outputs into ``out``: copy (hard-link where possible) every complete shape file, rewrite the manifest.
+
+    Raises:
+        DatasetError: a shard folder has no manifest, or shards were rendered with different settings.
+    """
+    out = Path(out)
+    settings = None
+    copied = 0
+    for d in shard_dirs:
+        d = Path(d)
+        mpath = d / MANIFEST
+        if not mpath.is_file():
+            raise DatasetError(f"{d}: not a dataset folder (no {MANIFEST})")
+        try:
+            manifest = json.loads(mpath.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise DatasetError(f"{mpath}: cannot read manifest ({exc})") from None
+        if manifest.get("format") != FORMAT_ID:
+            raise DatasetError(f"{mpath}: unknown dataset format {manifest.get('format')!r}")
+        if manifest["settings"] is not None:
+            if settings is not None and manifest["settings"] != settings:
+                raise DatasetError(f"{d}: rendered with different settings than the other shards")
+            settings = manifest["settings"]
+        for rec in manifest["shapes"]:
+            src, dst = d / rec["file"], out / rec["file"]
+            if dst.exists() and dst.resolve() == src.resolve():
+                continue
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            tmp = dst.with_name(f".{dst.name}.merge.tmp")
+            try:
+                if tmp.exists():
+                    tmp.unlink()
+                os.link(src, tmp)
+            except OSError:
+                shutil.copyfile(src, tmp)
+            os.replace(tmp, dst)
+            copied += 1
+    manifest = write_manifest(out)
+    return {"copied": copied, "shapes": len(manifest["shapes"]), "views": len(manifest["views"])}
+
+
+def load_manifest(root: str | os.PathLike) -> dict:
+    """Read ``root/manifest.json``; DatasetError naming the problem if it is missing or corrupt."""
+    path = Path(root) / MANIFEST
+    if not path.is_file():
+        raise DatasetError(f"{root}: not a dataset folder (no {MANIFEST}; build one with `sketchmesh data --source ...`)")
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise DatasetError(f"{path}: cannot read manifest ({exc})") from None
+    if manifest.get("format") != FORMAT_ID:
+        raise DatasetError(f"{path}: unknown dataset format {manifest.get('format')!r} (expected {FORMAT_ID})")
+    return manifest
+
+
+# --------------------------------------------------------------------------- loading
+class ShapeFileCache:
+    """Small per-process LRU of opened shape files; arrays are decoded on first use and kept."""
+
+    def __init__(self, capacity: int = 8) -> None:
+        self.capacity = int(capacity)
+        self._pid = os.getpid()
+        self._files: OrderedDict[str, dict] = OrderedDict()
+
+    def get(self, path: str, key: str) -> np.ndarray:
+        if os.getpid() != self._pid:  # forked into a DataLoader worker: never share open handles
+            self._pid, self._files = os.getpid(), OrderedDict()
+        entry = self._files.get(path)
+        if entry is None:
+            try:
+                entry = {"npz": np.load(path, allow_pickle=False)}
+            except Exception as exc:
+                raise DatasetError(f"{path}: cannot open shape file ({type(exc).__name__}: {exc})") from None
+            self._files[path] = entry
+            while len(self._files) > self.capacity:
+                _, old = self._files.popitem(last=False)
+                old["npz"].close()
+        else:
+            self._files.move_to_end(path)
+        if key not in entry:
+            try:
+                entry[key] = entry["npz"][key]
+            except Exception as exc:
+                raise DatasetError(f"{path}: cannot read {key!r} ({type(exc).__name__}: {exc})") from None
+        return entry[key]
+
+
+def _torch():
+    from training._torch import require_torch
+
+    return require_torch()
+
+
+try:  # the Dataset base class, without importing torch for users of the pure-numpy parts
+    from torch.utils.data import Dataset as _DatasetBase
+except ImportError:  # pragma: no cover
+    _DatasetBase = object
+
+
+class ShapeViewDataset(_DatasetBase):
+    """One item per (shape, view) of a split: sketch, normal images, silhouettes, cameras, other views.
+
+    Args:
+        root: dataset folder (with manifest.json).
+        split: "train", "val", "test" or "all".
+        extra_views: K, the number of other views of the same shape returned per item (>= 0).
+        augment_strength: hand-drawn augmentation strength in [0, 1] applied to the sketch at
+            load time from the stored polylines (0 returns the stored clean sketch).
+        seed: augmentation / extra-view seed; item i always gets the same augmentation and the
+            same other views (deterministic in (seed, i), independent of the epoch).
+        categories: restrict to these categories (default all in the dataset).
+
+    ``__getitem__(i)`` returns a dict of torch tensors (NCHW without N, float32 in [0, 1]):
+    ``sketch`` (1, S, S) 1 = ink; ``normals`` (3, S, S); ``silhouette`` (1, S, S);
+    ``normals64`` (3, s, s); ``silhouette64`` (s, s); ``camera`` (16,) float64 framed camera;
+    ``other_normals64`` (K, 3, s, s); ``other_silhouette64`` (K, s, s); ``other_cameras``
+    (K, 16) float64; and ``category`` str, ``shape_id`` str, ``view`` int. S = 256, s = 64 by default.
+    """
+
+    def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
+                 seed: int = 0, categories: Sequence[str] | None = None) -> None:
+        self.root = Path(root)
+        if split not in ("train", "val", "test", "all"):
+            raise DatasetError(f"split must be 'train', 'val', 'test' or 'all', got {split!r}")
+        if not isinstance(extra_views, (int, np.integer)) or extra_views < 0:
+            raise DatasetError(f"extra_views must be an int >= 0, got {extra_views!r}")
+        if not (np.isfinite(augment_strength) and 0.0 <= augment_strength <= 1.0):
+            raise DatasetError(f"augment_strength must be in [0, 1], got {augment_strength}")
+        self.manifest = load_manifest(self.root)
+        present = sorted({s["category"] for s in self.manifest["shapes"]})
+        if categories is not None:
+            missing = sorted(set(categories) - set(present))
+            if missing:
+                raise DatasetError(f"categories {missing} are not in {self.root} (it has {', '.join(present) or 'none'})")
+            wanted = set(categories)
+        else:
+            wanted = set(present)
+        self.split = split
+        self.extra_views = int(extra_views)
+        self.augment_strength = float(augment_strength)
+        self.seed = int(seed)
+        self._shapes = [s for s in self.manifest["shapes"] if s["category"] in wanted and (split == "all" or s["split"] == split)]
+        self.categories = sorted({s["category"] for s in self._shapes})
+        self._items = [(si, v) for si, s in enumerate(self._shapes) for v in range(int(s["num_views"]))]
+        self._by_id = {(s["category"], s["shape_id"]): s for s in self._shapes}
+        settings = self.manifest.get("settings") or {}
+        self.size = int(settings.get("size", 256))
+        self.small_size = int(settings.get("small_size", 64))
+        self._cache = ShapeFileCache()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def shapes(self) -> list[tuple[str, str, str]]:
+        """(category, shape_id, split) of every shape in this dataset view."""
+        return [(s["category"], s["shape_id"], s["split"]) for s in self._shapes]
+
+    def _path(self, rec: dict) -> str:
+        return str(self.root / rec["file"])
+
+    def load_mesh(self, category: str, shape_id: str) -> Mesh:
+        """The shape's normalised mesh (world frame, as rendered)."""
+        rec = self._by_id.get((category, shape_id))
+        if rec is None:
+            raise DatasetError(f"shape {category}/{shape_id} is not in this dataset ({self.split} split)")
+        p = self._path(rec)
+        return Mesh(self._cache.get(p, "vertices"), self._cache.get(p, "faces"))
+
+    def other_views(self, i: int) -> np.ndarray:
+        """(K,) the other view indices item i returns: distinct where possible, deterministic in (seed, i)."""
+        si, v = self._items[i]
+        n = int(self._shapes[si]["num_views"])
+        K = self.extra_views
+        if K == 0:
+            return np.zeros(0, np.int64)
+        rng = np.random.default_rng([self.seed, 7919, i])
+        pool = np.array([u for u in range(n) if u != v] or [v])
+        return rng.choice(pool, size=K, replace=K > len(pool)).astype(np.int64)
+
+    def __getitem__(self, i: int) -> dict:
+        torch = _torch()
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"index {i} out of range for a dataset of {len(self)} views")
+        i = int(i) % len(self)
+        si, v = self._items[i]
+        rec = self._shapes[si]
+        p = self._path(rec)
+        get = self._cache.get
+        if self.augment_strength > 0:
+            from training.data.augment import render_sketch
+            from training.data.render import view_polylines
+
+            arrays = {k: get(p, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+            sketch = render_sketch(view_polylines(arrays, v), self.size, self.augment_strength, [self.seed, i])
+        else:
+            sketch = get(p, "sketch")[v].astype(np.float32) / 255.0
+        others = self.other_views(i)
+        n64, s64 = get(p, "normals64"), get(p, "silhouette64")
+        cams = get(p, "cameras")
+        return {
+            "sketch": torch.from_numpy(np.ascontiguousarray(sketch, np.float32)[None]),
+            "normals": torch.from_numpy(get(p, "normals256")[v].astype(np.float32).transpose(2, 0, 1) / 255.0),
+            "silhouette": torch.from_numpy(get(p, "silhouette256")[v].astype(np.float32)[None]),
+            "normals64": torch.from_numpy(np.ascontiguousarray(n64[v].transpose(2, 0, 1), np.float32)),
+            "silhouette64": torch.from_numpy(s64[v].astype(np.float32)),
+            "camera": torch.from_numpy(cams[v].astype(np.float64)),
+            "other_normals64": torch.from_numpy(np.ascontiguousarray(n64[others].transpose(0, 3, 1, 2), np.float32)),
+            "other_silhouette64": torch.from_numpy(s64[others].astype(np.float32)),
+            "other_cameras": torch.from_numpy(cams[others].astype(np.float64)),
+            "category": rec["category"],
+            "shape_id": rec["shape_id"],
+            "view": int(v),
+        }
