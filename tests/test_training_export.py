@@ -1,0 +1,144 @@
+"""ONNX export: contract names and metadata, torch vs ONNX Runtime parity, int8, and the engine running it."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+onnx = pytest.importorskip("onnx")
+ort = pytest.importorskip("onnxruntime")
+
+from engine import contract as C  # noqa: E402
+from engine.errors import ModelError  # noqa: E402
+from engine.icosphere import icosphere  # noqa: E402
+from training.config import TrainConfig  # noqa: E402
+from training.export_onnx import PARITY_TOLERANCE, export_models, export_run  # noqa: E402
+from training.networks import downsample_normals  # noqa: E402
+from training.trainer import Trainer, load_run  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from synthetic_data import write_synthetic_dataset  # noqa: E402
+
+torch.set_num_threads(2)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("export")
+    data = write_synthetic_dataset(root / "data", splits=("train", "test"), views=2)
+    cfg = TrainConfig(mode="joint", data_dir=str(data), out_dir=str(root / "run"), iters=1, batch=2, base_channels=8,
+                      predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
+                      sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
+                      device="cpu")
+    Trainer(cfg, progress=False).run()
+    return root / "run"
+
+
+@pytest.fixture(scope="module")
+def exported(run_dir, tmp_path_factory) -> Path:
+    from sketchmesh.cli import main
+
+    out = tmp_path_factory.mktemp("models")
+    assert main(["export", str(run_dir), "-o", str(out)]) == 0
+    return out
+
+
+def _meta(path: Path) -> dict[str, str]:
+    return {p.key: p.value for p in onnx.load(str(path)).metadata_props}
+
+
+def test_export_writes_contract_names_and_metadata(exported, run_dir):
+    gen, pred = exported / C.GENERATOR_FILE, exported / C.PREDICTOR_FILE
+    g, p = _meta(gen), _meta(pred)
+    for meta, role in ((g, C.ROLE_GENERATOR), (p, C.ROLE_PREDICTOR)):
+        assert set(C.REQUIRED_METADATA) <= set(meta)
+        assert meta[C.META_ROLE] == role and meta[C.META_FORMAT] == C.FORMAT_VERSION
+        assert meta[C.META_CONVENTIONS] == C.CONVENTIONS_ID
+        assert TrainConfig.from_json(meta[C.META_CONFIG]).mode == "joint"
+        assert meta[C.META_CODE_VERSION].startswith("0.")
+    assert g[C.META_BASE_CHANNELS] == "8" and g[C.META_QUANTIZATION] == "none"
+    assert p[C.META_TEMPLATE_LEVEL] == "2" and float(p[C.META_TEMPLATE_RADIUS]) == 0.5
+    assert onnx.load(str(gen)).opset_import[0].version >= 17
+    sess = ort.InferenceSession(str(pred), providers=["CPUExecutionProvider"])
+    assert [i.name for i in sess.get_inputs()] == [C.PREDICTOR_INPUT]
+    assert [o.name for o in sess.get_outputs()] == [C.PREDICTOR_OUTPUT_LOCAL, C.PREDICTOR_OUTPUT_GLOBAL]
+    assert sess.get_inputs()[0].shape[1:] == [3, 64, 64] and not isinstance(sess.get_inputs()[0].shape[0], int)
+
+
+def test_onnx_runtime_reproduces_torch_at_any_batch(exported, run_dir):
+    """Independent of the exporter's own check: fresh inputs, batch 3 (the export traced batch 1)."""
+    _, models, _ = load_run(run_dir)
+    gen = ort.InferenceSession(str(exported / C.GENERATOR_FILE), providers=["CPUExecutionProvider"])
+    pred = ort.InferenceSession(str(exported / C.PREDICTOR_FILE), providers=["CPUExecutionProvider"])
+    rng = np.random.default_rng(1)
+    sketch = (rng.random((3, 1, 256, 256)) > 0.97).astype(np.float32)
+    normals64 = rng.random((3, 3, 64, 64)).astype(np.float32)
+    with torch.no_grad():
+        g_ref = models["generator"](torch.from_numpy(sketch)).numpy()
+        l_ref, gl_ref = (t.numpy() for t in models["predictor"](torch.from_numpy(normals64)))
+    (g_out,) = gen.run(None, {C.GENERATOR_INPUT: sketch})
+    l_out, gl_out = pred.run(None, {C.PREDICTOR_INPUT: normals64})
+    for ref, out in ((g_ref, g_out), (l_ref, l_out), (gl_ref, gl_out)):
+        assert ref.shape == out.shape
+        assert np.abs(ref - out).max() < PARITY_TOLERANCE, np.abs(ref - out).max()
+
+
+def test_engine_runs_the_exported_models_like_torch(exported, run_dir):
+    """Integration with engine/models.py + engine/pipeline.py: same mesh as the torch pipeline."""
+    pipeline = pytest.importorskip("engine.pipeline")
+    _, models, _ = load_run(run_dir)
+    raster = np.zeros((256, 256), np.float32)
+    raster[60:200, 60:62] = raster[60:62, 60:200] = raster[198:200, 60:200] = raster[60:200, 198:200] = 1.0
+    prediction = pipeline.SketchEngine(models_dir=exported).predict(raster)
+    mesh = prediction.mesh
+    assert mesh.num_vertices == 162 and np.isfinite(mesh.vertices).all()
+    with torch.no_grad():
+        n = models["generator"](torch.from_numpy(raster)[None, None])
+        local, glob = models["predictor"](downsample_normals(n))
+    expected = np.array(icosphere(2).vertices) + local[0].numpy() + glob[0].numpy()
+    assert np.abs(mesh.vertices - expected).max() < 1e-3
+    assert np.array_equal(mesh.faces, icosphere(2).faces)
+
+
+def test_int8_export_quantizes_the_predictor_only(run_dir, tmp_path, exported):
+    reports = export_run(run_dir, tmp_path, quantize="int8")
+    by_role = {r.role: r for r in reports}
+    assert by_role[C.ROLE_PREDICTOR].quantization == "int8-dynamic"
+    assert by_role[C.ROLE_GENERATOR].quantization == "none"
+    assert _meta(tmp_path / C.PREDICTOR_FILE)[C.META_QUANTIZATION] == "int8-dynamic"
+    assert (tmp_path / C.PREDICTOR_FILE).stat().st_size < 0.5 * (exported / C.PREDICTOR_FILE).stat().st_size
+    assert all(r.max_abs_error <= r.tolerance for r in reports)
+
+
+def test_failed_parity_writes_nothing(run_dir, tmp_path, monkeypatch):
+    import training.export_onnx as ex
+
+    class Broken:
+        def __init__(self, real):
+            self.real = real
+
+        def run(self, names, feeds):
+            return [o + 1e-2 for o in self.real.run(names, feeds)]
+
+    real_session = ex._session
+    monkeypatch.setattr(ex, "_session", lambda data: Broken(real_session(data)))
+    _, models, _ = load_run(run_dir)
+    with pytest.raises(ModelError, match="does not reproduce torch"):
+        export_models(models["generator"], models["predictor"], tmp_path / "out", config_json="{}", code_version="t",
+                      sketches=torch.zeros(1, 1, 256, 256), normals64=torch.zeros(1, 3, 64, 64))
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_export_bad_input_is_a_clear_error(run_dir, tmp_path):
+    with pytest.raises(ModelError, match="no checkpoint"):
+        export_run(tmp_path, tmp_path / "o")
+    with pytest.raises(ValueError, match="quantize"):
+        export_run(run_dir, tmp_path / "o", quantize="fp8")
+    _, models, _ = load_run(run_dir)
+    with pytest.raises(ValueError, match="sketches"):
+        export_models(models["generator"], None, tmp_path / "o", config_json="{}", code_version="t",
+                      sketches=torch.zeros(1, 1, 128, 128), normals64=torch.zeros(1, 3, 64, 64))

@@ -1,0 +1,230 @@
+"""Networks, generator losses, Sobel sampling, camera batching, config: against hand-computed values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from engine.camera import Camera, frame_camera, look_at, relative_camera  # noqa: E402
+from engine.icosphere import icosphere  # noqa: E402
+from training.config import TrainConfig  # noqa: E402
+from training.networks import (  # noqa: E402
+    MeshPredictor,
+    NormalGenerator,
+    PatchDiscriminator,
+    adversarial_loss,
+    downsample_normals,
+    global_l1_loss,
+    local_l1_loss,
+    sample_edge_pixels,
+    sobel_magnitude,
+    view_frame_cameras,
+)
+
+torch.set_num_threads(2)
+
+
+def n_params(m: torch.nn.Module) -> int:
+    return sum(p.numel() for p in m.parameters())
+
+
+# ---------------------------------------------------------------------------- generator
+
+
+def test_generator_parameter_count_matches_hand_count():
+    # base 4: encoder channels 4, 8, 16, 32, 32, 32, 32, 32; 4x4 kernels (16 weights per in/out pair);
+    # biases only on the first and innermost encoder convs and on the output conv (InstanceNorm elsewhere).
+    down = (16 * 1 * 4 + 4) + 16 * 4 * 8 + 16 * 8 * 16 + 16 * 16 * 32 + 3 * 16 * 32 * 32 + (16 * 32 * 32 + 32)
+    up = 16 * 32 * 32 + 3 * (16 * 64 * 32) + 16 * 64 * 16 + 16 * 32 * 8 + 16 * 16 * 4 + (16 * 8 * 3 + 3)
+    assert down + up == 212967
+    assert n_params(NormalGenerator(4)) == 212967
+
+
+def test_generator_output_shape_and_range():
+    g = NormalGenerator(4).eval()
+    x = (torch.rand(2, 1, 256, 256) > 0.95).float()
+    with torch.no_grad():
+        y = g(x)
+    assert y.shape == (2, 3, 256, 256)
+    assert torch.isfinite(y).all() and y.min() >= 0 and y.max() <= 1
+
+
+def test_generator_eval_output_does_not_depend_on_the_batch():
+    """InstanceNorm: a sketch gives the same normals alone (batch 1, the engine) as inside a batch."""
+    g = NormalGenerator(4).eval()
+    x = torch.rand(3, 1, 256, 256)
+    with torch.no_grad():
+        together = g(x)
+        alone = g(x[1:2])
+    assert torch.allclose(together[1:2], alone, atol=1e-5)
+
+
+def test_generator_rejects_bad_input_with_the_shape_it_got():
+    g = NormalGenerator(4)
+    with pytest.raises(ValueError, match=r"\(2, 3, 256, 256\)"):
+        g(torch.zeros(2, 3, 256, 256))
+    with pytest.raises(ValueError, match="divisible"):
+        g(torch.zeros(1, 1, 200, 200))
+
+
+# ---------------------------------------------------------------------------- discriminator
+
+
+def test_patch_discriminator_shape_and_parameter_count():
+    d = PatchDiscriminator(4)
+    expected = (16 * 4 * 4 + 4) + 16 * 4 * 8 + 16 * 8 * 16 + 16 * 16 * 32 + (16 * 32 * 1 + 1)
+    assert n_params(d) == expected == 11525
+    out = d(torch.rand(2, 1, 256, 256), torch.rand(2, 3, 256, 256))
+    assert out.shape == (2, 1, 30, 30)  # 70x70 receptive fields on a 256 image
+    with pytest.raises(ValueError, match="normals"):
+        d(torch.rand(2, 1, 256, 256), torch.rand(2, 3, 128, 128))
+
+
+# ---------------------------------------------------------------------------- mesh predictor
+
+
+def test_predictor_parameter_count_and_shapes():
+    p = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8)
+    convs = (25 * 3 * 4 + 4) + (25 * 4 * 8 + 8) + (25 * 8 * 16 + 16)
+    bns = 2 * (4 + 8 + 16)
+    fcs = (16 * 8 * 8 * 16 + 16) + (16 * 16 + 16) + (16 * 8 + 8) + (8 * 16 + 16) + (16 * 32 + 32)
+    heads = (32 * 162 * 3 + 162 * 3) + (32 * 3 + 3)
+    assert n_params(p) == convs + bns + fcs + heads == 38017
+    local, glob = p(torch.rand(2, 3, 64, 64))
+    assert local.shape == (2, 162, 3) and glob.shape == (2, 3)
+    v = p.vertices(local, glob)
+    expected = torch.from_numpy(np.array(icosphere(2).vertices))[None] + local + glob[:, None]
+    assert torch.allclose(v, expected)
+
+
+def test_predictor_starts_near_the_template_and_offsets_stay_bounded():
+    p = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8)
+    p.train()
+    local, glob = p(torch.rand(4, 3, 64, 64))
+    assert local.abs().max() < 0.05 and glob.abs().max() < 0.05
+    with torch.no_grad():  # extreme weights: tanh bounds the offsets, nothing overflows
+        for head in (p.local_head, p.global_head):
+            head.weight.fill_(1e6)
+        local, glob = p(torch.rand(4, 3, 64, 64))
+    assert torch.isfinite(local).all() and torch.isfinite(glob).all()
+    assert local.abs().max() <= p.local_scale + 1e-6 and glob.abs().max() <= p.global_scale + 1e-6
+
+
+# ---------------------------------------------------------------------------- generator losses
+
+
+def test_sobel_magnitude_of_a_unit_step_is_four_beside_the_step():
+    img = torch.zeros(1, 1, 8, 8)
+    img[..., 4:] = 1.0
+    mag = sobel_magnitude(img)[0]
+    expected = torch.zeros(8, 8)
+    expected[:, 3:5] = 4.0  # (1 + 2 + 1) * (1 - 0) on both sides of the step
+    assert torch.allclose(mag, expected, atol=1e-5)
+    three = sobel_magnitude(img.expand(1, 3, 8, 8))[0]  # channels add in quadrature
+    assert torch.allclose(three, expected * np.sqrt(3.0), atol=1e-5)
+
+
+def test_sample_edge_pixels_picks_only_edge_pixels_deterministically():
+    img = torch.zeros(2, 3, 32, 32)
+    img[:, :, 8:24, 8:24] = 0.7  # a square: edges on its border rows/columns
+    mag = sobel_magnitude(img)
+    edges = set(torch.nonzero(mag[0].reshape(-1) >= 1.0).flatten().tolist())
+    assert 0 < len(edges) < 32 * 32 // 4
+    g1 = torch.Generator().manual_seed(3)
+    idx = sample_edge_pixels(img, 40, 1.0, g1)
+    assert idx.shape == (2, 40)
+    for row in idx:
+        assert set(row.tolist()) <= edges and len(set(row.tolist())) == 40  # no repeats
+    again = sample_edge_pixels(img, 40, 1.0, torch.Generator().manual_seed(3))
+    other = sample_edge_pixels(img, 40, 1.0, torch.Generator().manual_seed(4))
+    assert torch.equal(idx, again) and not torch.equal(idx, other)
+
+
+def test_sample_edge_pixels_fills_with_the_strongest_when_edges_are_few():
+    img = torch.zeros(1, 1, 16, 16)
+    img[..., 5, 5] = 1.0  # one bright pixel: Sobel 2 beside it (horizontally/vertically), less diagonally
+    mag = sobel_magnitude(img)[0].reshape(-1)
+    idx = sample_edge_pixels(img, 20, 1.9, torch.Generator().manual_seed(0))[0]
+    strong = set(torch.nonzero(mag >= 1.9).flatten().tolist())
+    assert strong <= set(idx.tolist())  # every candidate is taken
+    rest = [i for i in idx.tolist() if i not in strong]
+    weakest_taken = mag[rest].min()
+    not_taken = torch.ones_like(mag, dtype=torch.bool)
+    not_taken[idx] = False
+    assert weakest_taken >= mag[not_taken].max() - 1e-6  # fillers are the next strongest
+    empty = sample_edge_pixels(torch.zeros(1, 3, 16, 16), 5, 0.5)  # no edges at all: still a valid tensor
+    assert empty.shape == (1, 5)
+
+
+def test_local_l1_matches_a_loop_and_global_l1_matches_numpy():
+    gen = torch.Generator().manual_seed(0)
+    pred, target = torch.rand(2, 3, 8, 8, generator=gen), torch.rand(2, 3, 8, 8, generator=gen)
+    idx = torch.tensor([[0, 9, 63], [5, 5, 17]])
+    total = 0.0
+    for n in range(2):
+        for i in idx[n].tolist():
+            r, c = divmod(i, 8)
+            total += float((pred[n, :, r, c] - target[n, :, r, c]).abs().sum())
+    assert local_l1_loss(pred, target, idx).item() == pytest.approx(total / (2 * 3 * 3), rel=1e-6)
+    assert global_l1_loss(pred, target).item() == pytest.approx(np.abs(pred.numpy() - target.numpy()).mean(), rel=1e-6)
+
+
+def test_adversarial_loss_hand_values():
+    zeros = torch.zeros(2, 1, 30, 30)
+    assert adversarial_loss(zeros, True).item() == pytest.approx(np.log(2.0))
+    assert adversarial_loss(zeros, False).item() == pytest.approx(np.log(2.0))
+    big = torch.full((1, 1, 2, 2), 50.0)  # saturated logits: finite, about 0 and 50
+    assert adversarial_loss(big, True).item() == pytest.approx(0.0, abs=1e-6)
+    assert adversarial_loss(big, False).item() == pytest.approx(50.0, rel=1e-6)
+
+
+def test_downsample_is_4x4_area_average():
+    x = torch.rand(2, 3, 256, 256, dtype=torch.float64)
+    ref = x.numpy().reshape(2, 3, 64, 4, 64, 4).mean(axis=(3, 5))
+    assert np.allclose(downsample_normals(x).numpy(), ref, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------- cameras
+
+
+def test_view_frame_cameras_match_engine_relative_camera():
+    rng = np.random.default_rng(0)
+    pts = rng.uniform(-0.5, 0.5, (50, 3))
+    cams_in, cams_other = [], []
+    for _ in range(3):
+        cams_in.append(frame_camera(look_at(rng.uniform(0, 360), 30.0), pts))
+        cams_other.append([frame_camera(look_at(rng.uniform(0, 360), rng.uniform(-20, 40)), pts) for _ in range(2)])
+    t_in = torch.tensor(np.stack([c.to_array() for c in cams_in]))
+    t_other = torch.tensor(np.stack([[c.to_array() for c in row] for row in cams_other]))
+    out = view_frame_cameras(t_in, t_other)
+    assert out.shape == (3, 3, 16)
+    for b in range(3):
+        expected = [relative_camera(cams_in[b], cams_in[b])] + [relative_camera(cams_in[b], c) for c in cams_other[b]]
+        for k, cam in enumerate(expected):
+            assert np.allclose(out[b, k].numpy(), cam.to_array(), atol=1e-12)
+        assert np.allclose(out[b, 0, :9].numpy(), np.eye(3).ravel(), atol=1e-12)  # the input view: identity
+        Camera.from_array(out[b, 1].numpy())  # a valid camera (rotation check)
+    with pytest.raises(ValueError, match="other_cameras"):
+        view_frame_cameras(t_in, t_other[:2])
+
+
+# ---------------------------------------------------------------------------- config
+
+
+def test_config_json_round_trip_and_validation():
+    cfg = TrainConfig(mode="joint", data_dir="d", out_dir="o", betas=(0.5, 0.9), categories=("chair",),
+                      debug_nan_iters=(3,))
+    back = TrainConfig.from_json(cfg.to_json())
+    assert back == cfg and isinstance(back.betas, tuple)
+    assert (cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m) == (0.002, 0.9, 0.9, 0.01)
+    assert (cfg.lr_g, cfg.lr_d, cfg.lr_mesh) == (5e-5, 5e-5, 1e-4)
+    with pytest.raises(ValueError, match="mode"):
+        TrainConfig(mode="bogus")
+    with pytest.raises(ValueError, match="batch"):
+        TrainConfig(batch=0)
+    with pytest.raises(ValueError, match="lambda_s"):
+        TrainConfig(lambda_s=float("nan"))
+    with pytest.raises(ValueError, match="unknown"):
+        TrainConfig.from_dict({"nope": 1})

@@ -1,0 +1,352 @@
+"""The bundled trainer: checkpoints, tiny end-to-end runs, resume, the non-finite guard, eval, CLI errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from engine.errors import ModelError  # noqa: E402
+from training.checkpoint import (  # noqa: E402
+    checkpoint_paths,
+    load_latest_checkpoint,
+    save_checkpoint,
+)
+from training.config import TrainConfig  # noqa: E402
+from training.trainer import Trainer, _to_device  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from synthetic_data import write_synthetic_dataset  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+torch.set_num_threads(2)
+
+TINY = dict(batch=2, base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
+            template_level=2, sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0,
+            plot_every=0, device="cpu")
+TINY_FLAGS = ["--batch", "2", "--base-channels", "8", "--predictor-channels", "8", "--predictor-hidden", "32",
+              "--predictor-latent", "16", "--template-level", "2", "--sobel-samples", "64", "--augment-strength", "0",
+              "--quiet", "--threads", "2"]
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory) -> Path:
+    return write_synthetic_dataset(tmp_path_factory.mktemp("data"), splits=("train", "train", "test"), views=3)
+
+
+def cli(argv: list[str]) -> int:
+    from sketchmesh.cli import main
+
+    return main(argv)
+
+
+def read_log(run: Path) -> list[dict]:
+    with open(run / "log.csv", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def params(models: dict) -> dict[str, torch.Tensor]:
+    return {f"{k}.{n}": p.detach().clone() for k, m in models.items() for n, p in m.state_dict().items()}
+
+
+# ---------------------------------------------------------------------------- checkpoints
+
+
+def _tiny_state():
+    model = torch.nn.Linear(3, 2)
+    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
+    model(torch.rand(4, 3)).sum().backward()
+    opt.step()
+    return model, opt
+
+
+def test_checkpoint_round_trip_keeps_the_last_two(tmp_path):
+    model, opt = _tiny_state()
+    for it in (1, 2, 3):
+        save_checkpoint(tmp_path, it, TrainConfig().to_json(), "v", {"m": model}, {"m": opt})
+    assert [p.name for p in checkpoint_paths(tmp_path)] == ["ckpt_00000003.pt", "ckpt_00000002.pt"]
+    state = load_latest_checkpoint(tmp_path)
+    assert state["iteration"] == 3 and TrainConfig.from_json(state["config"]) == TrainConfig()
+    fresh = torch.nn.Linear(3, 2)
+    fresh.load_state_dict(state["models"]["m"])
+    assert all(torch.equal(a, b) for a, b in zip(fresh.parameters(), model.parameters()))
+    opt2 = torch.optim.Adam(fresh.parameters(), lr=1e-3)
+    opt2.load_state_dict(state["optimizers"]["m"])
+    assert torch.equal(opt2.state_dict()["state"][0]["exp_avg"], opt.state_dict()["state"][0]["exp_avg"])
+    assert json.loads((tmp_path / "config.json").read_text())["iteration"] == 3
+
+
+def test_interrupted_checkpoint_write_leaves_the_previous_one_loadable(tmp_path, monkeypatch):
+    model, opt = _tiny_state()
+    save_checkpoint(tmp_path, 1, TrainConfig().to_json(), "v", {"m": model}, {"m": opt})
+    real_save = torch.save
+
+    def failing_save(obj, fh, *a, **k):
+        fh.write(b"PK\x03\x04 half a checkpoint")
+        raise OSError("disk full (simulated)")
+
+    monkeypatch.setattr(torch, "save", failing_save)
+    with pytest.raises(OSError, match="simulated"):
+        save_checkpoint(tmp_path, 2, TrainConfig().to_json(), "v", {"m": model}, {"m": opt})
+    monkeypatch.setattr(torch, "save", real_save)
+    assert [p.name for p in (tmp_path / "checkpoints").iterdir()] == ["ckpt_00000001.pt"]  # no temp file left
+    assert load_latest_checkpoint(tmp_path)["iteration"] == 1
+
+
+def test_corrupt_newest_checkpoint_falls_back_to_the_previous(tmp_path):
+    model, opt = _tiny_state()
+    for it in (1, 2):
+        save_checkpoint(tmp_path, it, TrainConfig().to_json(), "v", {"m": model}, {"m": opt})
+    newest = checkpoint_paths(tmp_path)[0]
+    newest.write_bytes(newest.read_bytes()[:100])  # truncated by something outside our control
+    with pytest.warns(UserWarning, match="unreadable"):
+        assert load_latest_checkpoint(tmp_path)["iteration"] == 1
+    checkpoint_paths(tmp_path)[1].write_bytes(b"garbage")
+    with pytest.warns(UserWarning), pytest.raises(ModelError, match="no readable checkpoint"):
+        load_latest_checkpoint(tmp_path)
+
+
+# ---------------------------------------------------------------------------- end to end
+
+
+def test_cli_trains_every_mode_then_evaluates(data_dir, tmp_path, capsys):
+    runs = {}
+    for mode in ("normals", "mesh", "joint"):
+        run = tmp_path / mode
+        rc = cli(["train", mode, "--data", str(data_dir), "--out", str(run), "--iters", "2", "--log-every", "1",
+                  "--val-every", "2", "--ckpt-every", "1", "--plot-every", "2", *TINY_FLAGS])
+        assert rc == 0, capsys.readouterr().err
+        runs[mode] = run
+        assert (run / "checkpoints" / "ckpt_00000002.pt").is_file()
+        assert (run / "val" / "iter_00002.png").stat().st_size > 0
+        assert (run / "curves.png").stat().st_size > 0
+        saved = json.loads((run / "config.json").read_text())
+        assert saved["config"]["mode"] == mode and saved["code_version"].startswith("0.")
+        rows = read_log(run)
+        assert [int(r["iteration"]) for r in rows] == [1, 2]
+        total = "mesh_total" if mode != "normals" else "g_total"
+        assert all(np.isfinite(float(r[total])) for r in rows)
+        assert all(float(r["samples_per_s"]) > 0 for r in rows)
+    # a joint run can start from the normals run's generator and the mesh run's predictor
+    init = Trainer(TrainConfig(mode="joint", data_dir=str(data_dir), out_dir=str(tmp_path / "init"), iters=1,
+                               init_normals=str(runs["normals"]), init_mesh=str(runs["mesh"]), **TINY), progress=False)
+    for name, run in (("generator", "normals"), ("discriminator", "normals"), ("predictor", "mesh")):
+        saved = load_latest_checkpoint(runs[run])["models"][name]
+        assert all(torch.equal(saved[k], v) for k, v in init.models[name].state_dict().items())
+    assert "initialised" in (tmp_path / "init" / "events.log").read_text()
+    # the validation image: sketch | GT | predicted normals | mesh from the input view | another view
+    import cv2
+
+    img = cv2.imread(str(runs["joint"] / "val" / "iter_00002.png"))
+    assert img.shape[1] == 5 * 128 and img.shape[0] % 128 == 0
+
+    out_json = tmp_path / "eval.json"
+    rc = cli(["eval", str(runs["joint"]), "--data", str(data_dir), "--baseline-run", str(runs["mesh"]),
+              "--json", str(out_json), "--quiet", "--max-samples", "4"])
+    assert rc == 0, capsys.readouterr().err
+    table = capsys.readouterr().out
+    assert "| retrieval |" in table and "| mesh |" in table and "voxel_iou" in table
+    res = json.loads(out_json.read_text())
+    assert set(res["mean"]) >= {"voxel_iou", "chamfer_l1", "silhouette_iou", "normal_consistency"}
+    assert set(res["per_category"]) == {"blob", "box"}
+    for method in res["methods"].values():
+        m = method["mean"]
+        assert 0 <= m["voxel_iou"] <= 1 and 0 <= m["silhouette_iou"] <= 1 and 0 <= m["normal_consistency"] <= 1
+        assert 0 <= m["chamfer_l1"] < 2 and method["ms_per_sample"] > 0
+    for suffix in ("md", "json", "png"):
+        assert (runs["joint"] / "eval" / f"eval_test.{suffix}").stat().st_size > 0
+
+
+def test_retrieval_finds_the_query_itself_when_it_is_in_the_train_split(data_dir):
+    """Evaluate the train split with ground-truth normals: retrieval returns the same shape and view, so
+    its meshes are the ground truth (voxel IoU 1, Chamfer ~ sampling noise)."""
+    from training.evaluate import evaluate
+    from training.trainer import Trainer
+
+    run = data_dir.parent / "retrieval_run"
+    Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(run), iters=1, **TINY), progress=False).run()
+    res = evaluate(run, data_dir, "train", gt_normals=True, max_samples=3, progress=False)
+    r = res["methods"]["retrieval"]["mean"]
+    assert r["voxel_iou"] == pytest.approx(1.0) and r["chamfer_l1"] < 0.02 and r["silhouette_iou"] > 0.95
+
+
+def test_view_frame_rendering_reproduces_the_dataset_targets(data_dir):
+    """The mesh loss's plumbing: the ground-truth mesh moved to the input view frame and rendered with
+    view_frame_cameras matches the dataset's normal images and silhouettes of the input view and the
+    other view (which were rendered in the world frame with the views' own cameras)."""
+    from training.data.dataset import ShapeViewDataset
+    from training.networks import view_frame_cameras
+    from training.trainer import mesh_targets, render_views
+
+    ds = ShapeViewDataset(data_dir, "train", extra_views=1, augment_strength=0.0)
+    for i in (0, len(ds) - 1):
+        item = torch.utils.data.default_collate([ds[i]])
+        mesh = ds.load_mesh(item["category"][0], item["shape_id"][0])
+        r_in = item["camera"][0, :9].reshape(3, 3)
+        view = torch.from_numpy(np.array(mesh.vertices, np.float64)) @ r_in.T  # p_view = R_in p_world
+        cams = view_frame_cameras(item["camera"], item["other_cameras"])
+        out = render_views(view[None], torch.from_numpy(np.array(mesh.faces)), cams, TrainConfig(render_size=64))
+        tn, ts = mesh_targets(item)
+        assert out.normals.shape == tn.shape == (2, 3, 64, 64)
+        mismatch = ((out.silhouette > 0.5) != (ts > 0.5)).float().mean()
+        assert mismatch < 0.005, float(mismatch)
+        assert (out.normals.float() - tn).abs().mean() < 2e-3
+
+
+# ---------------------------------------------------------------------------- resume
+
+
+def test_resumed_run_equals_an_uninterrupted_run(data_dir, tmp_path):
+    """Joint mode covers every stateful piece: dropout and Sobel sampling (reseeded per step), RMSProp,
+    Adam, BatchNorm statistics and the data order."""
+    cfg = TrainConfig(mode="joint", data_dir=str(data_dir), iters=3, **TINY)
+    straight = Trainer(cfg.replace(out_dir=str(tmp_path / "a")), progress=False)
+    straight.run()
+    first = Trainer(cfg.replace(out_dir=str(tmp_path / "b"), iters=1), progress=False)
+    first.run()
+    resumed = Trainer(cfg.replace(out_dir=str(tmp_path / "b")), progress=False)
+    assert resumed.iteration == 1
+    resumed.run()
+    assert resumed.iteration == 3
+    a, b = params(straight.models), params(resumed.models)
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), f"{k} differs by {float((a[k].float() - b[k].float()).abs().max())}"
+    sa = straight.optimizers["predictor"].state_dict()["state"]
+    sb = resumed.optimizers["predictor"].state_dict()["state"]
+    assert all(torch.equal(sa[i]["exp_avg_sq"], sb[i]["exp_avg_sq"]) for i in sa)
+    assert [int(r["iteration"]) for r in read_log(tmp_path / "b")] == [1, 2, 3]
+    assert "resumed from" in (tmp_path / "b" / "events.log").read_text()
+
+
+def test_killed_run_resumes_from_its_last_checkpoint(data_dir, tmp_path):
+    run = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "sketchmesh", "train", "mesh", "--data", str(data_dir), "--out", str(run),
+           "--iters", "6", "--ckpt-every", "1", "--log-every", "1", "--val-every", "0", "--plot-every", "0",
+           "--debug-sleep", "0.4", *TINY_FLAGS]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not (run / "checkpoints" / "ckpt_00000002.pt").exists():
+            if proc.poll() is not None:
+                pytest.fail(f"training exited early: {proc.stderr.read().decode()[-2000:]}")
+            time.sleep(0.1)
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    killed_at = int(checkpoint_paths(run)[0].name[5:13])
+    assert 2 <= killed_at < 6
+    done = subprocess.run([c for c in cmd if c != "--debug-sleep" and c != "0.4"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "resumed from" in (run / "events.log").read_text()
+    assert load_latest_checkpoint(run)["iteration"] == 6
+    its = [int(r["iteration"]) for r in read_log(run)]
+    assert its == list(range(1, 7)), its  # rows past the checkpoint were dropped, then continued
+
+
+# ---------------------------------------------------------------------------- non-finite guard
+
+
+def _trainer_and_batch(data_dir, tmp_path, name="g", **kw):
+    tr = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / name), iters=5,
+                             **(TINY | kw)), progress=False)
+    items = [tr.train_set[i] for i in range(2)]
+    return tr, _to_device(torch.utils.data.default_collate(items), tr.device)
+
+
+def test_injected_nan_skips_the_step_and_is_logged(data_dir, tmp_path):
+    tr, batch = _trainer_and_batch(data_dir, tmp_path, debug_nan_iters=(1,))
+    assert tr.train_step(batch, 0)[0]
+    before = params(tr.models)
+    adam = {i: {k: v.clone() for k, v in s.items()} for i, s in tr.optimizers["predictor"].state_dict()["state"].items()}
+    ok, terms = tr.train_step(batch, 1)
+    assert not ok and not np.isfinite(terms["mesh_total"])
+    after = params(tr.models)
+    assert all(torch.equal(before[k], after[k]) for k in before)  # parameters and BN statistics untouched
+    for i, s in tr.optimizers["predictor"].state_dict()["state"].items():
+        assert all(torch.equal(s[k], adam[i][k]) for k in s)
+    assert "skipped non-finite step" in (tmp_path / "g" / "events.log").read_text()
+    assert tr.train_step(batch, 2)[0]  # the run continues
+    assert any(not torch.equal(before[k], v) for k, v in params(tr.models).items())
+
+
+def test_nan_from_the_network_is_caught_and_bad_streak_restores_the_good_state(data_dir, tmp_path):
+    tr, batch = _trainer_and_batch(data_dir, tmp_path, max_bad_steps=2)
+    good = params(tr.models)
+    head = tr.models["predictor"].local_head
+    with torch.no_grad():
+        head.bias[0] = float("nan")  # a poisoned weight: NaN vertices, the rasterizer is never reached
+    ok, _ = tr.train_step(batch, 0)
+    assert not ok
+    log = (tmp_path / "g" / "events.log").read_text()
+    assert "mesh_total" in log and "1 in a row" in log
+    ok, _ = tr.train_step(batch, 1)
+    assert not ok
+    assert "restored the last good state" in (tmp_path / "g" / "events.log").read_text()
+    assert all(torch.equal(good[k], v) for k, v in params(tr.models).items())
+    assert tr.train_step(batch, 2)[0]
+
+
+@pytest.mark.parametrize("extreme", [
+    dict(lambda_n=1e6, lambda_s=1e8),  # huge loss weights (clipped gradients)
+    dict(delta=1e-6),  # a near-singular Eq. 1 gradient strength: edge gradients scale as 1 / delta
+    dict(grad_clip=0.0, lambda_m=1e6, lr_mesh=10.0),  # no clipping, absurd smoothness weight and step size
+])
+def test_extreme_settings_never_leave_non_finite_weights(data_dir, tmp_path, extreme):
+    tr, batch = _trainer_and_batch(data_dir, tmp_path, **extreme)
+    taken = [tr.train_step(batch, it)[0] for it in range(3)]
+    for name, p in tr.models["predictor"].state_dict().items():
+        assert torch.isfinite(p.float()).all(), name
+    if not all(taken):  # a step that went non-finite was skipped and said so
+        assert "skipped non-finite step" in (tmp_path / "g" / "events.log").read_text()
+
+
+def test_full_run_with_a_bad_step_completes_and_counts_it(data_dir, tmp_path):
+    run = tmp_path / "nanrun"
+    tr = Trainer(TrainConfig(mode="normals", data_dir=str(data_dir), out_dir=str(run), iters=3,
+                             debug_nan_iters=(1,), **TINY), progress=False)
+    tr.run()
+    rows = read_log(run)
+    assert [int(r["skipped"]) for r in rows] == [0, 1, 0]
+    assert load_latest_checkpoint(run)["iteration"] == 3
+
+
+# ---------------------------------------------------------------------------- bad input
+
+
+def test_bad_input_gives_one_line_errors(data_dir, tmp_path, capsys):
+    cases = [
+        (["train", "mesh", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")], "does not exist"),
+        (["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--batch", "0"], "batch"),
+        (["eval", str(tmp_path / "missing_run"), "--data", str(data_dir)], "does not exist"),
+        (["export", str(tmp_path), "-o", str(tmp_path / "x")], "no checkpoint"),
+    ]
+    if not torch.cuda.is_available():
+        cases.append((["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--device", "cuda"],
+                      "no CUDA device"))
+    for argv, needle in cases:
+        rc = cli(argv)
+        err = capsys.readouterr().err.strip()
+        assert rc != 0 and needle in err and len(err.splitlines()) == 1, (argv, err)
+    run = tmp_path / "existing"
+    assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "1", *TINY_FLAGS]) == 0
+    capsys.readouterr()
+    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "2", "--no-resume", *TINY_FLAGS])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0 and "already has checkpoints" in err
+    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "2", "--base-channels", "8",
+              "--template-level", "3", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0 and "config changed" in err and "template_level" in err

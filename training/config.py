@@ -1,0 +1,195 @@
+"""The one training configuration: a frozen dataclass, parsed once by the CLI, saved with every checkpoint.
+
+Kept torch-free so the CLI can build and validate it before importing torch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import engine
+
+MODES = ("normals", "mesh", "joint")
+DEVICES = ("auto", "cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Every training setting. Defaults follow the paper (section 4.1) unless noted.
+
+    Attributes:
+        mode: "normals" (the cGAN sketch -> normal image), "mesh" (the predictor on ground-truth
+            normals), or "joint" (generated normals feed the predictor; both fine-tuned end to end).
+        data_dir: dataset root (``sketchmesh data --out``).
+        out_dir: run folder (checkpoints, log.csv, curves, validation images).
+        iters: total optimisation steps of the run (a resumed run continues to this count).
+        batch: per-process batch size.
+        lr_g, lr_d: RMSProp learning rates of the generator and the discriminator (paper: 5e-5).
+        lr_mesh, betas: Adam settings of the mesh predictor (paper: 1e-4, (0.9, 0.999)).
+        lambda_n, lambda_s, lambda_e, lambda_m: Eq. 6 weights (paper: 0.002, 0.9, 0.9, 0.01);
+            ``lambda_n = 0`` trains the silhouette-only baseline.
+        lambda_g, lambda_l: Eq. 10 weights of the global and local (Sobel-sampled) L1 terms.
+        lambda_adv: weight of the adversarial term of the generator (1 in Eq. 10).
+        joint_mesh_weight: weight of the mesh loss on the generator in joint mode.
+        sobel_samples: pixels sampled per image for Eq. 9.
+        sobel_threshold: Sobel magnitude above which a ground-truth pixel is an edge (a unit step gives 4).
+        base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
+        predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512).
+        template_level: icosphere level (3 -> 642 vertices, the paper's).
+        extra_views: K other known views rendered per sample for the mesh loss.
+        sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
+        delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
+        shading: "flat" or "smooth" normals in the rendered normal image.
+        grad_clip: max global gradient norm per model (0 disables clipping).
+        max_bad_steps: consecutive non-finite steps after which the last good state is restored.
+        seed: seed of the data order, sampling and initialisation.
+        device: "auto" (CUDA when available, else CPU), "cpu" or "cuda".
+        log_every, val_every, ckpt_every, plot_every: periods in iterations (0 disables).
+        num_workers: DataLoader worker processes.
+        augment_strength: sketch augmentation strength of the dataset.
+        categories: restrict to these categories (empty = all).
+        init_normals, init_mesh: runs whose last checkpoint initialises the generator / predictor.
+        debug_nan_iters: iterations at which a NaN is injected into every loss (tests of the guard).
+        debug_sleep: seconds to sleep per iteration (tests that kill a run mid-way).
+    """
+
+    mode: str = "normals"
+    data_dir: str = ""
+    out_dir: str = ""
+    iters: int = 20000
+    batch: int = 4
+    lr_g: float = 5e-5
+    lr_d: float = 5e-5
+    lr_mesh: float = 1e-4
+    betas: tuple[float, float] = (0.9, 0.999)
+    lambda_n: float = 0.002
+    lambda_s: float = 0.9
+    lambda_e: float = 0.9
+    lambda_m: float = 0.01
+    lambda_g: float = 100.0
+    lambda_l: float = 100.0
+    lambda_adv: float = 1.0
+    joint_mesh_weight: float = 1.0
+    sobel_samples: int = 512
+    sobel_threshold: float = 0.5
+    base_channels: int = 64
+    predictor_channels: int = 64
+    predictor_hidden: int = 1024
+    predictor_latent: int = 512
+    template_level: int = 3
+    extra_views: int = 1
+    sketch_size: int = 256
+    render_size: int = 64
+    delta: float = 1.0
+    shading: str = "flat"
+    grad_clip: float = 10.0
+    max_bad_steps: int = 5
+    seed: int = 0
+    device: str = "auto"
+    log_every: int = 10
+    val_every: int = 500
+    ckpt_every: int = 500
+    plot_every: int = 100
+    num_workers: int = 0
+    augment_strength: float = 0.5
+    categories: tuple[str, ...] = field(default_factory=tuple)
+    init_normals: str = ""
+    init_mesh: str = ""
+    debug_nan_iters: tuple[int, ...] = field(default_factory=tuple)
+    debug_sleep: float = 0.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.mode not in MODES:
+            problems.append(f"mode must be one of {MODES}, got {self.mode!r}")
+        if self.device not in DEVICES:
+            problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.shading not in ("flat", "smooth"):
+            problems.append(f"shading must be 'flat' or 'smooth', got {self.shading!r}")
+        for name in ("iters", "batch", "base_channels", "predictor_channels", "predictor_hidden",
+                     "predictor_latent", "sobel_samples", "max_bad_steps", "sketch_size", "render_size"):
+            if int(getattr(self, name)) < 1:
+                problems.append(f"{name} must be >= 1, got {getattr(self, name)}")
+        for name in ("extra_views", "log_every", "val_every", "ckpt_every", "plot_every", "num_workers",
+                     "template_level", "seed"):
+            if int(getattr(self, name)) < 0:
+                problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0 <= self.template_level <= 5:
+            problems.append(f"template_level must be in [0, 5], got {self.template_level}")
+        for name in ("lr_g", "lr_d", "lr_mesh", "delta"):
+            v = float(getattr(self, name))
+            if not (v > 0 and v < float("inf")):
+                problems.append(f"{name} must be finite and > 0, got {v}")
+        for name in ("lambda_n", "lambda_s", "lambda_e", "lambda_m", "lambda_g", "lambda_l", "lambda_adv",
+                     "joint_mesh_weight", "grad_clip", "augment_strength", "sobel_threshold", "debug_sleep"):
+            v = float(getattr(self, name))
+            if not (v >= 0 and v < float("inf")):
+                problems.append(f"{name} must be finite and >= 0, got {v}")
+        if len(self.betas) != 2 or not all(0 <= b < 1 for b in self.betas):
+            problems.append(f"betas must be two numbers in [0, 1), got {self.betas}")
+        if self.sketch_size % (2**8):
+            problems.append(f"sketch_size must be a multiple of 256 (8 U-Net levels), got {self.sketch_size}")
+        if self.sobel_samples > self.sketch_size**2:
+            problems.append(f"sobel_samples must be <= sketch_size^2, got {self.sobel_samples}")
+        if problems:
+            raise ValueError("invalid training config: " + "; ".join(problems))
+        object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
+        object.__setattr__(self, "categories", tuple(str(c) for c in self.categories))
+        object.__setattr__(self, "debug_nan_iters", tuple(int(i) for i in self.debug_nan_iters))
+
+    # ---- serialisation ----
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["betas"] = list(self.betas)
+        d["categories"] = list(self.categories)
+        d["debug_nan_iters"] = list(self.debug_nan_iters)
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True)
+
+    @staticmethod
+    def from_dict(d: dict) -> TrainConfig:
+        known = {f.name for f in dataclasses.fields(TrainConfig)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"unknown training config keys: {unknown}")
+        d = dict(d)
+        for key in ("betas", "categories", "debug_nan_iters"):
+            if key in d:
+                d[key] = tuple(d[key])
+        return TrainConfig(**d)
+
+    @staticmethod
+    def from_json(text: str) -> TrainConfig:
+        return TrainConfig.from_dict(json.loads(text))
+
+    def replace(self, **changes) -> TrainConfig:
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def uses_generator(self) -> bool:
+        return self.mode in ("normals", "joint")
+
+    @property
+    def uses_predictor(self) -> bool:
+        return self.mode in ("mesh", "joint")
+
+
+def code_version() -> str:
+    """``engine.__version__`` plus ``git describe --always --dirty`` of the source tree when available."""
+    version = engine.__version__
+    root = Path(__file__).resolve().parents[1]
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty"], cwd=root, capture_output=True, text=True, timeout=5
+        )
+        if out.returncode == 0 and out.stdout.strip():
+            version += "+" + out.stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return version

@@ -1,0 +1,413 @@
+"""``sketchmesh eval``: 3D and 2D accuracy of a trained run on the test split, with baselines.
+
+For every test sample (a sketch of one view of one shape) the run predicts a mesh: sketch ->
+generator -> normal image -> area-downsampled to 64x64 -> mesh predictor (or the predictor on the
+ground-truth normal image with ``--gt-normals``). The prediction is in the input view's frame
+(:mod:`engine.camera`), so it is rotated back to the world with ``R_in.T`` and compared with the
+normalised ground-truth mesh:
+
+* ``voxel_iou`` -- IoU of solid 32^3 voxelisations (the paper's Table 1 metric), higher is better;
+* ``chamfer_l1`` -- Occupancy-Networks Chamfer-L1, lower is better;
+* ``normal_consistency`` -- in [0, 1], higher is better;
+* ``silhouette_iou`` -- IoU of the predicted mesh's silhouette rendered from the input view at 64x64
+  against the ground-truth silhouette.
+
+Metrics are averaged per category, and ``mean`` is the mean over categories (as in the paper).
+
+Baselines in the same table:
+
+* ``retrieval`` -- the nearest *training* sample by L1 distance between 64x64 normal images (the
+  query's normal image: generated, or ground truth with ``--gt-normals``); its mesh is rotated into
+  the query's view frame with the two views' rotations (``R_r`` then ``R_q.T`` back to the world:
+  the retrieved shape is placed as it looked in its own view).
+* any ``--baseline-run RUN`` (e.g. a silhouette-only run trained with ``lambda_n = 0``): evaluated
+  the same way; a baseline without a generator borrows the main run's generator.
+
+Outputs: a markdown table (printed and written to ``OUT/eval_<split>.md``), JSON (``--json PATH``
+and ``OUT/eval_<split>.json``) and a bar chart ``OUT/eval_<split>.png``. Every method's row carries its
+cost (milliseconds of network inference per sample on this machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from engine.errors import ModelError, SketchmeshError
+from engine.fileio import atomic_write_bytes, atomic_write_text
+from engine.mesh import Mesh
+from training.config import TrainConfig
+from training.networks import downsample_normals, view_frame_cameras
+
+METRICS = ("voxel_iou", "chamfer_l1", "normal_consistency", "silhouette_iou")
+HIGHER_IS_BETTER = {"voxel_iou": True, "chamfer_l1": False, "normal_consistency": True, "silhouette_iou": True}
+SURFACE_POINTS = 2000
+"""Surface samples per mesh for Chamfer-L1 and normal consistency (Occupancy Networks use 100k;
+2k keeps evaluation at a few ms per sample with a standard error of about 1 % of the value)."""
+EVAL_BATCH = 8
+RETRIEVAL_CHUNK = 256
+
+
+class EvaluationError(SketchmeshError):
+    """Evaluation cannot run (empty split, run without the needed networks)."""
+
+
+def world_vertices(view_vertices: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """View-frame (V, 3) vertices -> world: ``p_world = R_in.T @ p_view`` with R_in from the (16,) camera."""
+    r = np.asarray(camera, dtype=np.float64)[:9].reshape(3, 3)
+    return np.asarray(view_vertices, dtype=np.float64) @ r
+
+
+class _Method:
+    """A way of predicting view-frame meshes from a batch (the run, a baseline run, retrieval)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.seconds = 0.0
+        self.count = 0
+
+
+class _RunMethod(_Method):
+    def __init__(self, name: str, generator, predictor, cfg: TrainConfig, gt_normals: bool) -> None:
+        super().__init__(name)
+        self.generator, self.predictor, self.cfg, self.gt_normals = generator, predictor, cfg, gt_normals
+
+    @torch.no_grad()
+    def normals64(self, batch: dict) -> torch.Tensor:
+        if self.gt_normals:
+            return batch["normals64"].float()
+        return downsample_normals(self.generator(batch["sketch"].float()), self.predictor.input_size)
+
+    @torch.no_grad()
+    def predict(self, batch: dict) -> tuple[np.ndarray, np.ndarray | None]:
+        t0 = time.perf_counter()
+        n64 = self.normals64(batch)
+        local, glob = self.predictor(n64)
+        verts = self.predictor.vertices(local, glob)
+        self.seconds += time.perf_counter() - t0
+        self.count += verts.shape[0]
+        return verts.numpy().astype(np.float64), None
+
+
+class _RetrievalMethod(_Method):
+    """Nearest training sample by 64x64 normal-image L1 distance."""
+
+    def __init__(self, train_set, query: _RunMethod | None, progress: bool) -> None:
+        super().__init__("retrieval")
+        from tqdm import tqdm
+
+        self.train_set = train_set
+        self.query = query
+        n = len(train_set)
+        if n == 0:
+            raise EvaluationError("the retrieval baseline needs a non-empty train split")
+        images, cams, keys = [], [], []
+        for i in tqdm(range(n), desc="retrieval index", disable=not progress, unit="img"):
+            item = train_set[i]
+            images.append(torch.as_tensor(np.asarray(item["normals64"]), dtype=torch.float16))
+            cams.append(np.asarray(item["camera"], dtype=np.float64))
+            keys.append((item["category"], item["shape_id"]))
+        self.images = torch.stack(images).reshape(n, -1)  # (N, 3 * 64 * 64) float16
+        self.cameras = np.stack(cams)
+        self.keys = keys
+
+    @torch.no_grad()
+    def predict(self, batch: dict) -> tuple[np.ndarray, list]:
+        t0 = time.perf_counter()
+        q = (self.query.normals64(batch) if self.query is not None else batch["normals64"].float()).reshape(
+            batch["normals64"].shape[0], -1)
+        best_d = torch.full((q.shape[0],), float("inf"))
+        best_i = torch.zeros(q.shape[0], dtype=torch.int64)
+        for s in range(0, self.images.shape[0], RETRIEVAL_CHUNK):
+            chunk = self.images[s:s + RETRIEVAL_CHUNK].float()
+            d = torch.cdist(q, chunk, p=1.0)  # (B, chunk)
+            dmin, imin = d.min(dim=1)
+            better = dmin < best_d
+            best_d = torch.where(better, dmin, best_d)
+            best_i = torch.where(better, imin + s, best_i)
+        self.seconds += time.perf_counter() - t0
+        self.count += q.shape[0]
+        return None, [(self.keys[i], self.cameras[i]) for i in best_i.tolist()]
+
+
+def _load_models(run: str | Path, need_generator: bool, fallback_generator=None):
+    from training.trainer import load_run
+
+    cfg, models, _ = load_run(run)
+    if "predictor" not in models:
+        raise EvaluationError(f"run {run} has no mesh predictor (train 'mesh' or 'joint' first)")
+    gen = models.get("generator", fallback_generator)
+    if need_generator and gen is None:
+        raise EvaluationError(f"run {run} has no generator: pass --generator-run RUN, or --gt-normals")
+    return cfg, gen, models["predictor"]
+
+
+def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarray, size: int) -> np.ndarray:
+    """(B, size, size) bool silhouettes of view-frame meshes from their input views."""
+    from training.render import rasterize
+
+    v = torch.from_numpy(np.ascontiguousarray(view_vertices, dtype=np.float64))
+    cams = view_frame_cameras(torch.from_numpy(np.asarray(cameras, dtype=np.float64)))[:, 0]
+    with torch.no_grad():
+        out = rasterize(v, torch.from_numpy(np.array(faces, dtype=np.int64)), cams, size)
+    return out.silhouette.numpy() > 0.5
+
+
+def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int) -> dict[str, float]:
+    from training.metrics import solid_voxels, surface_metrics
+
+    pv = solid_voxels(pred, resolution)
+    union = int(np.count_nonzero(pv | gt_voxels))
+    iou = 1.0 if union == 0 else int(np.count_nonzero(pv & gt_voxels)) / union
+    try:
+        surf = surface_metrics(pred, gt, SURFACE_POINTS)
+        cd, nc = surf["chamfer_l1"], surf["normal_consistency"]
+    except ValueError:  # a collapsed prediction with zero area: worst scores, not a crash
+        cd, nc = float("nan"), 0.0
+    return {"voxel_iou": iou, "chamfer_l1": cd, "normal_consistency": nc}
+
+
+def _summarise(records: list[dict]) -> dict:
+    per_cat: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in records:
+        for m in METRICS:
+            per_cat[r["category"]][m].append(r[m])
+    per_category = {c: {m: float(np.nanmean(v[m])) if np.isfinite(v[m]).any() else float("nan") for m in METRICS}
+                    | {"samples": len(v[METRICS[0]])} for c, v in sorted(per_cat.items())}
+    mean = {m: float(np.nanmean([per_category[c][m] for c in per_category])) for m in METRICS}
+    mean["samples"] = len(records)
+    return {"mean": mean, "per_category": per_category}
+
+
+def evaluate(
+    run: str | Path,
+    data_dir: str | Path,
+    split: str = "test",
+    *,
+    gt_normals: bool = False,
+    generator_run: str | Path | None = None,
+    baseline_runs: tuple = (),
+    retrieval: bool = True,
+    max_samples: int = 0,
+    augment_strength: float = 0.0,
+    voxel_resolution: int = 32,
+    progress: bool = True,
+    test_set=None,
+    train_set=None,
+) -> dict:
+    """Evaluate a run (and baselines) on a split; see the module docstring.
+
+    Args:
+        run: run folder with a mesh predictor (and a generator unless ``gt_normals`` or
+            ``generator_run``).
+        data_dir: dataset folder.
+        split: "test" (default), "val" or "train".
+        gt_normals: feed the predictor ground-truth normal images.
+        generator_run: take the generator from this run.
+        baseline_runs: extra runs evaluated alongside.
+        retrieval: include the retrieval baseline (reads the whole train split's 64x64 normals).
+        max_samples: evaluate at most this many samples, evenly spaced (0: all).
+        augment_strength: sketch augmentation of the evaluated sketches.
+        voxel_resolution: voxel grid side for the IoU.
+        test_set, train_set: datasets to use instead of reading ``data_dir`` (tests).
+
+    Returns:
+        ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
+        summary and ``ms_per_sample``), ``"split"``, ``"samples"``, ``"seconds"``.
+    """
+    from tqdm import tqdm
+
+    from training.trainer import load_run, make_dataset
+
+    t_start = time.perf_counter()
+    if voxel_resolution < 4:
+        raise EvaluationError(f"voxel resolution must be >= 4, got {voxel_resolution}")
+    gen_fallback = None
+    if generator_run:
+        _, gmodels, _ = load_run(generator_run)
+        if "generator" not in gmodels:
+            raise EvaluationError(f"--generator-run {generator_run} has no generator")
+        gen_fallback = gmodels["generator"]
+    cfg, gen, pred = _load_models(run, not gt_normals, gen_fallback)
+    if generator_run:
+        gen = gen_fallback
+    data_cfg = cfg.replace(data_dir=str(data_dir), extra_views=0, augment_strength=augment_strength, categories=())
+    if test_set is None:
+        test_set = make_dataset(data_cfg, split)
+        if augment_strength > 0 and split != "train":  # make_dataset only augments the train split
+            from training.data.dataset import ShapeViewDataset
+
+            test_set = ShapeViewDataset(Path(data_dir), split, extra_views=0, augment_strength=augment_strength,
+                                        seed=cfg.seed)
+    if len(test_set) == 0:
+        raise EvaluationError(f"the {split} split of {data_dir} is empty")
+    methods: list[_Method] = [_RunMethod(Path(run).name or str(run), gen, pred, cfg, gt_normals)]
+    for b in baseline_runs:
+        bcfg, bgen, bpred = _load_models(b, not gt_normals, gen)
+        name = Path(b).name or str(b)
+        if any(m.name == name for m in methods):
+            name = str(b)
+        methods.append(_RunMethod(name, bgen, bpred, bcfg, gt_normals))
+    if retrieval:
+        if train_set is None:
+            train_set = make_dataset(data_cfg.replace(augment_strength=0.0), "train")
+        methods.append(_RetrievalMethod(train_set, methods[0], progress))
+
+    indices = np.arange(len(test_set))
+    if max_samples and max_samples < len(indices):
+        indices = np.unique(np.linspace(0, len(test_set) - 1, max_samples).round().astype(int))
+    faces = pred.template_faces.cpu().numpy().copy()
+    gt_cache: dict[tuple[str, str], tuple[Mesh, np.ndarray]] = {}
+    train_mesh_cache: dict[tuple[str, str], Mesh] = {}
+    records: dict[str, list[dict]] = {m.name: [] for m in methods}
+
+    def gt_mesh(cat: str, sid: str) -> tuple[Mesh, np.ndarray]:
+        from training.metrics import solid_voxels
+
+        if (cat, sid) not in gt_cache:
+            mesh = test_set.load_mesh(cat, sid)
+            gt_cache[(cat, sid)] = (mesh, solid_voxels(mesh, voxel_resolution))
+        return gt_cache[(cat, sid)]
+
+    bar = tqdm(total=len(indices), desc=f"eval {split}", unit="sample", disable=not progress)
+    for s in range(0, len(indices), EVAL_BATCH):
+        items = [test_set[int(i)] for i in indices[s:s + EVAL_BATCH]]
+        batch = {k: torch.as_tensor(np.stack([np.asarray(it[k]) for it in items]))
+                 for k in ("sketch", "normals64", "silhouette64", "camera")}
+        cams = batch["camera"].numpy().astype(np.float64)
+        for method in methods:
+            verts, retrieved = method.predict(batch)
+            if retrieved is not None:  # retrieval: the train mesh, as it looked in its own view
+                verts_world = []
+                for (key, cam_r), cam_q in zip(retrieved, cams):
+                    if key not in train_mesh_cache:
+                        train_mesh_cache[key] = method.train_set.load_mesh(*key)
+                    m = train_mesh_cache[key]
+                    r_r = cam_r[:9].reshape(3, 3)
+                    view = np.asarray(m.vertices, np.float64) @ r_r.T  # p_view = R_r p_world
+                    verts_world.append((world_vertices(view, cam_q), m.faces, view))
+                sil = [_silhouettes(v[None], f, c[None], 64)[0] for (_, f, v), c in zip(verts_world, cams)]
+                meshes = [Mesh(w, f) for w, f, _ in verts_world]
+            else:
+                sil = list(_silhouettes(verts, faces, cams, 64))
+                meshes = [Mesh(world_vertices(v, c), faces) for v, c in zip(verts, cams)]
+            for it, mesh, sl in zip(items, meshes, sil):
+                gmesh, gvox = gt_mesh(it["category"], it["shape_id"])
+                rec = _pair_metrics(mesh, gmesh, gvox, voxel_resolution)
+                from training.metrics import silhouette_iou
+
+                rec["silhouette_iou"] = silhouette_iou(sl, np.asarray(it["silhouette64"]) > 0.5)
+                rec.update(category=it["category"], shape_id=it["shape_id"], view=int(it["view"]))
+                records[method.name].append(rec)
+        bar.update(len(items))
+    bar.close()
+
+    summaries = {}
+    for m in methods:
+        summ = _summarise(records[m.name])
+        summ["ms_per_sample"] = 1000.0 * m.seconds / max(m.count, 1)
+        summaries[m.name] = summ
+    main = summaries[methods[0].name]
+    return {
+        "mean": main["mean"],
+        "per_category": main["per_category"],
+        "methods": summaries,
+        "method_order": [m.name for m in methods],
+        "split": split,
+        "samples": int(len(indices)),
+        "gt_normals": bool(gt_normals),
+        "voxel_resolution": int(voxel_resolution),
+        "seconds": time.perf_counter() - t_start,
+    }
+
+
+def markdown_table(result: dict) -> str:
+    """Voxel IoU per category (rows) and method (columns), then every metric's mean and the cost."""
+    names = result["method_order"]
+    cats = sorted({c for n in names for c in result["methods"][n]["per_category"]})
+    lines = [f"Voxel IoU ({result['voxel_resolution']}^3) on the {result['split']} split, "
+             f"{result['samples']} samples{' (ground-truth normals)' if result['gt_normals'] else ''}", "",
+             "| category | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
+    for c in cats:
+        row = [result["methods"][n]["per_category"].get(c, {}).get("voxel_iou", float("nan")) for n in names]
+        lines.append(f"| {c} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    lines += ["", "| method | " + " | ".join(METRICS) + " | ms / sample |", "|---|" + "---:|" * (len(METRICS) + 1)]
+    for n in names:
+        mean = result["methods"][n]["mean"]
+        lines.append(f"| {n} | " + " | ".join(f"{mean[m]:.4f}" for m in METRICS)
+                     + f" | {result['methods'][n]['ms_per_sample']:.1f} |")
+    lines.append("")
+    lines.append("voxel_iou, normal_consistency, silhouette_iou: higher is better; chamfer_l1: lower is better. "
+                 "Means are over categories. ms / sample: network inference only (this machine).")
+    return "\n".join(lines) + "\n"
+
+
+def bar_chart(result: dict, path: str | Path) -> None:
+    """Grouped bars of voxel IoU per category and method (PNG, atomic)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = result["method_order"]
+    cats = sorted({c for n in names for c in result["methods"][n]["per_category"]}) + ["mean"]
+    x = np.arange(len(cats))
+    width = 0.8 / max(len(names), 1)
+    fig, ax = plt.subplots(figsize=(max(6, 0.9 * len(cats) + 2), 3.5))
+    for k, n in enumerate(names):
+        pc = result["methods"][n]["per_category"]
+        vals = [pc.get(c, {}).get("voxel_iou", np.nan) for c in cats[:-1]] + [result["methods"][n]["mean"]["voxel_iou"]]
+        ax.bar(x + (k - (len(names) - 1) / 2) * width, vals, width, label=n)
+    ax.set_xticks(x, cats, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel("voxel IoU")
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=8)
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _json_safe(x):
+    if isinstance(x, dict):
+        return {k: _json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_json_safe(v) for v in x]
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
+
+
+def evaluate_cli(args: argparse.Namespace) -> int:
+    """The ``sketchmesh eval`` command (see :mod:`training.cli_train`)."""
+    if args.max_samples < 0:
+        raise EvaluationError(f"--max-samples must be >= 0, got {args.max_samples}")
+    if not Path(args.run).is_dir():
+        raise ModelError(f"run folder {args.run} does not exist")
+    result = evaluate(
+        args.run, args.data, args.split, gt_normals=args.gt_normals, generator_run=args.generator_run,
+        baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
+        augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
+    )
+    table = markdown_table(result)
+    print(table)
+    out = Path(args.out) if args.out else Path(args.run) / "eval"
+    stem = f"eval_{args.split}"
+    text = json.dumps(_json_safe(result), indent=2, sort_keys=True)
+    atomic_write_text(out / f"{stem}.md", table)
+    atomic_write_text(out / f"{stem}.json", text)
+    bar_chart(result, out / f"{stem}.png")
+    if args.json:
+        atomic_write_text(args.json, text)
+    print(f"wrote {out / (stem + '.md')}, {out / (stem + '.json')}, {out / (stem + '.png')}"
+          + (f" and {args.json}" if args.json else "") + f" in {result['seconds']:.1f} s")
+    return 0

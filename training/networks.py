@@ -1,0 +1,378 @@
+"""The two networks of the paper and the generator's losses (paper sections 3.2, 3.3, 4.1).
+
+* :class:`NormalGenerator` -- a pix2pix U-Net: sketch (N, 1, 256, 256), 1 = ink, to the encoded
+  normal image (N, 3, 256, 256) in [0, 1] (``(n + 1) / 2``, background 0; :mod:`engine.camera`).
+* :class:`PatchDiscriminator` -- the 70x70 PatchGAN conditioned on the sketch.
+* :class:`MeshPredictor` -- the Neural Mesh Renderer / SoftRas encoder-decoder: normal image
+  (N, 3, 64, 64) to a per-vertex local offset (N, V, 3) and a global offset (N, 3) of the
+  icosphere template (:mod:`engine.icosphere`), so the mesh in the view frame is
+  ``template + local + global[:, None]`` (:mod:`engine.contract`).
+
+Pure functions for the generator objective (Eq. 7-10): :func:`adversarial_loss`,
+:func:`global_l1_loss`, :func:`sobel_magnitude`, :func:`sample_edge_pixels`,
+:func:`local_l1_loss`; and the batched camera helper :func:`view_frame_cameras` that renders a
+view-frame prediction from the input view and the other known views.
+
+Design choices (documented once here):
+
+* Normalisation in the generator and discriminator is **InstanceNorm** (no affine, no running
+  statistics): a batch-1 sketch at inference behaves exactly as in training, which BatchNorm does
+  not guarantee; it exports to ONNX ``InstanceNormalization``. The innermost (1x1) encoder block
+  has no normalisation (instance statistics of a single pixel are degenerate).
+* The generator's output is ``sigmoid``: always inside [0, 1], the range of the encoded normals.
+* Dropout 0.5 in the first three decoder blocks, as pix2pix (it is pix2pix's noise z); off in eval.
+* The mesh predictor keeps SoftRas's BatchNorm encoder (train at batch >= 2; export in eval mode).
+* The local offset is bounded: ``local_scale * tanh(.)`` (default 0.6, a bit more than the template
+  radius 0.5, enough to reach any point of the normalised cube from the sphere), the global offset
+  ``global_scale * tanh(.)`` (default 0.2: shapes are centred by normalisation, the global offset only
+  corrects residual off-centring). The last layers start at small weights so training starts from
+  (almost) the template sphere, which keeps early rendering losses stable.
+* Adversarial loss: binary cross-entropy with logits (the standard cGAN objective of Eq. 7, in the
+  non-saturating form for the generator).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from engine.contract import PREDICTOR_INPUT_SIZE, SKETCH_SIZE
+from engine.icosphere import TEMPLATE_RADIUS, icosphere
+
+GENERATOR_LEVELS = 8
+"""Down-sampling levels of the U-Net: 256 -> 1."""
+
+LOCAL_OFFSET_SCALE = 0.6
+GLOBAL_OFFSET_SCALE = 0.2
+OUTPUT_INIT_STD = 1e-3
+"""Std of the offset heads' initial weights: the first prediction is close to the template."""
+
+SOBEL_EPS = 1e-12
+
+
+def _check_image(x: torch.Tensor, channels: int, size: int | None, name: str) -> None:
+    if not isinstance(x, torch.Tensor) or x.ndim != 4 or x.shape[1] != channels:
+        got = tuple(x.shape) if isinstance(x, torch.Tensor) else type(x).__name__
+        raise ValueError(f"{name} must be (N, {channels}, H, W), got {got}")
+    if size is not None and (x.shape[2] != size or x.shape[3] != size):
+        raise ValueError(f"{name} must be (N, {channels}, {size}, {size}), got {tuple(x.shape)}")
+
+
+# ----------------------------------------------------------------------------------------------
+# Generator: pix2pix U-Net
+# ----------------------------------------------------------------------------------------------
+
+
+def generator_channels(base_channels: int, levels: int = GENERATOR_LEVELS) -> list[int]:
+    """Encoder output channels per level: base * (1, 2, 4, 8, 8, 8, ...)."""
+    return [base_channels * min(2**i, 8) for i in range(levels)]
+
+
+class NormalGenerator(nn.Module):
+    """pix2pix U-Net generator (Isola et al. 2017), 8 levels for 256x256 inputs.
+
+    Encoder level i: Conv 4x4 stride 2 (+ InstanceNorm except at the first and innermost level),
+    LeakyReLU 0.2 before every conv but the first. Decoder level i: ReLU, ConvTranspose 4x4
+    stride 2, InstanceNorm (not at the outermost level), Dropout 0.5 at the three innermost decoder
+    levels below the bottleneck; skip connections concatenate encoder and decoder features.
+
+    Args:
+        base_channels: channels of the first level (64 = the paper's width; 32, 16 for speed).
+        levels: down-sampling levels; the input side must be divisible by ``2**levels``.
+        dropout: decoder dropout probability (pix2pix: 0.5).
+    """
+
+    def __init__(self, base_channels: int = 64, levels: int = GENERATOR_LEVELS, dropout: float = 0.5) -> None:
+        super().__init__()
+        if base_channels < 1 or levels < 2:
+            raise ValueError(f"need base_channels >= 1 and levels >= 2, got {base_channels}, {levels}")
+        self.base_channels = int(base_channels)
+        self.levels = int(levels)
+        ch = generator_channels(base_channels, levels)
+        self.down = nn.ModuleList()
+        for i in range(levels):
+            cin = 1 if i == 0 else ch[i - 1]
+            layers: list[nn.Module] = [] if i == 0 else [nn.LeakyReLU(0.2)]
+            layers.append(nn.Conv2d(cin, ch[i], 4, 2, 1, bias=(i == 0 or i == levels - 1)))
+            if 0 < i < levels - 1:
+                layers.append(nn.InstanceNorm2d(ch[i]))
+            self.down.append(nn.Sequential(*layers))
+        self.up = nn.ModuleList()
+        # up[j] produces the feature map at encoder level (levels - 2 - j), j = 0 innermost.
+        for j in range(levels):
+            i = levels - 1 - j  # input is at level i
+            cin = ch[i] if j == 0 else 2 * ch[i]
+            cout = 3 if i == 0 else ch[i - 1]
+            layers = [nn.ReLU(), nn.ConvTranspose2d(cin, cout, 4, 2, 1, bias=(i == 0))]
+            if i > 0:
+                layers.append(nn.InstanceNorm2d(cout))
+                if 1 <= j <= 3 and dropout > 0:
+                    layers.append(nn.Dropout(dropout))
+            self.up.append(nn.Sequential(*layers))
+
+    def forward(self, sketch: torch.Tensor) -> torch.Tensor:
+        """Sketch to normal image.
+
+        Args:
+            sketch: (N, 1, H, W) float in [0, 1], 1 = ink; H = W divisible by ``2**levels`` (256).
+
+        Returns:
+            (N, 3, H, W) encoded camera-space normals in [0, 1] (background ideally 0).
+        """
+        _check_image(sketch, 1, None, "sketch")
+        if sketch.shape[2] != sketch.shape[3] or sketch.shape[2] % (2**self.levels):
+            raise ValueError(f"sketch must be square with side divisible by {2 ** self.levels}, got {tuple(sketch.shape)}")
+        skips = []
+        x = sketch
+        for block in self.down:
+            x = block(x)
+            skips.append(x)
+        x = self.up[0](skips[-1])
+        for j in range(1, self.levels):
+            x = self.up[j](torch.cat([x, skips[self.levels - 1 - j]], dim=1))
+        return torch.sigmoid(x)
+
+
+class PatchDiscriminator(nn.Module):
+    """70x70 PatchGAN conditioned on the sketch: logits per overlapping 70x70 patch.
+
+    C(base, no norm)-C(2 base)-C(4 base), stride 2, then C(8 base) stride 1 and a 1-channel conv,
+    all 4x4 with padding 1, LeakyReLU 0.2, InstanceNorm. A 256x256 input gives (N, 1, 30, 30).
+
+    Args:
+        base_channels: width of the first layer (64 in pix2pix).
+    """
+
+    def __init__(self, base_channels: int = 64, in_channels: int = 4) -> None:
+        super().__init__()
+        c = int(base_channels)
+        self.net = nn.Sequential(
+            nn.Conv2d(in_channels, c, 4, 2, 1), nn.LeakyReLU(0.2),
+            nn.Conv2d(c, 2 * c, 4, 2, 1, bias=False), nn.InstanceNorm2d(2 * c), nn.LeakyReLU(0.2),
+            nn.Conv2d(2 * c, 4 * c, 4, 2, 1, bias=False), nn.InstanceNorm2d(4 * c), nn.LeakyReLU(0.2),
+            nn.Conv2d(4 * c, 8 * c, 4, 1, 1, bias=False), nn.InstanceNorm2d(8 * c), nn.LeakyReLU(0.2),
+            nn.Conv2d(8 * c, 1, 4, 1, 1),
+        )
+
+    def forward(self, sketch: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+        """Args: sketch (N, 1, H, W), normals (N, 3, H, W). Returns logits (N, 1, H/8 - 2, W/8 - 2)."""
+        _check_image(sketch, 1, None, "sketch")
+        _check_image(normals, 3, sketch.shape[2], "normals")
+        if normals.shape[0] != sketch.shape[0]:
+            raise ValueError(f"sketch and normals batch differ: {sketch.shape[0]} vs {normals.shape[0]}")
+        return self.net(torch.cat([sketch, normals], dim=1))
+
+
+# ----------------------------------------------------------------------------------------------
+# Mesh predictor: SoftRas / NMR encoder-decoder
+# ----------------------------------------------------------------------------------------------
+
+
+class MeshPredictor(nn.Module):
+    """Normal image (N, 3, 64, 64) -> icosphere offsets (SoftRas reconstruction network).
+
+    Encoder: three Conv 5x5 stride 2 (c, 2c, 4c; BatchNorm, ReLU) on 64x64, then FC to ``hidden``
+    twice and to ``latent``. Decoder: FC ``hidden``, FC ``2 * hidden``, then two heads: per-vertex
+    local offsets ``local_scale * tanh(.)`` (V * 3) and a global offset ``global_scale * tanh(.)`` (3).
+
+    Args:
+        template_level: icosphere level of the template (3 -> 642 vertices, the paper's).
+        base_channels: c (64 in SoftRas; FC 16c*8*8 -> hidden holds most parameters).
+        hidden: FC width (1024 in SoftRas).
+        latent: width of the code between encoder and decoder (512 in SoftRas).
+        input_size: side of the input image (64).
+    """
+
+    def __init__(
+        self,
+        template_level: int = 3,
+        base_channels: int = 64,
+        hidden: int = 1024,
+        latent: int = 512,
+        input_size: int = PREDICTOR_INPUT_SIZE,
+        local_scale: float = LOCAL_OFFSET_SCALE,
+        global_scale: float = GLOBAL_OFFSET_SCALE,
+    ) -> None:
+        super().__init__()
+        template = icosphere(template_level, TEMPLATE_RADIUS)
+        self.template_level = int(template_level)
+        self.num_vertices = template.num_vertices
+        self.input_size = int(input_size)
+        self.local_scale = float(local_scale)
+        self.global_scale = float(global_scale)
+        self.register_buffer("template_vertices", torch.from_numpy(np.array(template.vertices)), persistent=False)
+        self.register_buffer("template_faces", torch.from_numpy(np.array(template.faces)), persistent=False)
+        c = int(base_channels)
+        self.encoder = nn.Sequential(
+            nn.Conv2d(3, c, 5, 2, 2), nn.BatchNorm2d(c), nn.ReLU(),
+            nn.Conv2d(c, 2 * c, 5, 2, 2), nn.BatchNorm2d(2 * c), nn.ReLU(),
+            nn.Conv2d(2 * c, 4 * c, 5, 2, 2), nn.BatchNorm2d(4 * c), nn.ReLU(),
+            nn.Flatten(),
+            nn.Linear(4 * c * math.ceil(input_size / 8) ** 2, hidden), nn.ReLU(),
+            nn.Linear(hidden, hidden), nn.ReLU(),
+            nn.Linear(hidden, latent), nn.ReLU(),
+        )
+        self.decoder = nn.Sequential(nn.Linear(latent, hidden), nn.ReLU(), nn.Linear(hidden, 2 * hidden), nn.ReLU())
+        self.local_head = nn.Linear(2 * hidden, self.num_vertices * 3)
+        self.global_head = nn.Linear(2 * hidden, 3)
+        for head in (self.local_head, self.global_head):
+            nn.init.normal_(head.weight, std=OUTPUT_INIT_STD)
+            nn.init.zeros_(head.bias)
+
+    def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
+        _check_image(normals, 3, self.input_size, "normals")
+        h = self.decoder(self.encoder(normals))
+        local = self.local_scale * torch.tanh(self.local_head(h)).view(-1, self.num_vertices, 3)
+        glob = self.global_scale * torch.tanh(self.global_head(h))
+        return local, glob
+
+    def vertices(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
+        """(N, V, 3) view-frame vertices ``template + local + global``."""
+        return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
+
+
+# ----------------------------------------------------------------------------------------------
+# Generator losses (Eq. 7-10)
+# ----------------------------------------------------------------------------------------------
+
+
+def adversarial_loss(logits: torch.Tensor, real: bool) -> torch.Tensor:
+    """BCE-with-logits against an all-real (1) or all-fake (0) target; mean over patches. Scalar."""
+    target = torch.ones_like(logits) if real else torch.zeros_like(logits)
+    return F.binary_cross_entropy_with_logits(logits, target)
+
+
+def global_l1_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Eq. 8: mean absolute difference over all pixels and channels. pred, target (N, C, H, W)."""
+    if pred.shape != target.shape:
+        raise ValueError(f"pred and target shapes differ: {tuple(pred.shape)} vs {tuple(target.shape)}")
+    return (pred - target).abs().mean()
+
+
+_SOBEL_X = torch.tensor([[-1.0, 0.0, 1.0], [-2.0, 0.0, 2.0], [-1.0, 0.0, 1.0]])
+
+
+def sobel_magnitude(image: torch.Tensor) -> torch.Tensor:
+    """Sobel gradient magnitude summed over channels (replicate padding at the border).
+
+    Args:
+        image: (N, C, H, W).
+
+    Returns:
+        (N, H, W) ``sqrt(sum_c gx_c^2 + gy_c^2)``. A unit step between two flat regions gives 4
+        on both pixels next to the step (the kernel weights 1, 2, 1).
+    """
+    if image.ndim != 4:
+        raise ValueError(f"image must be (N, C, H, W), got {tuple(image.shape)}")
+    n, c, h, w = image.shape
+    kx = _SOBEL_X.to(image)
+    k = torch.stack([kx, kx.t()])[:, None]  # (2, 1, 3, 3)
+    x = F.pad(image.reshape(n * c, 1, h, w), (1, 1, 1, 1), mode="replicate")
+    g = F.conv2d(x, k).reshape(n, c, 2, h, w)
+    return torch.sqrt((g * g).sum(dim=(1, 2)) + SOBEL_EPS) - math.sqrt(SOBEL_EPS)
+
+
+def sample_edge_pixels(
+    target: torch.Tensor, num_samples: int, threshold: float, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Pick pixels on sharp features of the ground-truth normal image (the Eq. 9 sampling).
+
+    Pixels whose :func:`sobel_magnitude` is at least ``threshold`` are candidates; ``num_samples``
+    of them are drawn uniformly without replacement per image. An image with fewer candidates is
+    filled with its next-strongest pixels (so the count is fixed and the batch stays a tensor).
+
+    Args:
+        target: (N, C, H, W) ground-truth normal image.
+        num_samples: pixels per image, 1 <= num_samples <= H * W.
+        threshold: Sobel magnitude above which a pixel is an edge.
+        generator: torch random generator (deterministic sampling under a seed).
+
+    Returns:
+        (N, num_samples) int64 flat pixel indices ``row * W + col``.
+    """
+    n, _, h, w = target.shape
+    if not 1 <= num_samples <= h * w:
+        raise ValueError(f"num_samples must be in [1, {h * w}], got {num_samples}")
+    with torch.no_grad():
+        mag = sobel_magnitude(target.detach()).reshape(n, h * w)
+        rand = torch.rand(mag.shape, generator=generator, device="cpu").to(mag.device)
+        scale = mag.amax(dim=1, keepdim=True).clamp_min(SOBEL_EPS)
+        # candidates score in [1, 2) (random order); others in [0, 1] by strength
+        key = torch.where(mag >= threshold, 1.0 + 0.999 * rand, 0.999 * mag / scale)
+        return key.topk(num_samples, dim=1).indices
+
+
+def local_l1_loss(pred: torch.Tensor, target: torch.Tensor, indices: torch.Tensor) -> torch.Tensor:
+    """Eq. 9: mean absolute difference at sampled pixels. pred/target (N, C, H, W), indices (N, S)."""
+    if pred.shape != target.shape:
+        raise ValueError(f"pred and target shapes differ: {tuple(pred.shape)} vs {tuple(target.shape)}")
+    n, c, h, w = pred.shape
+    idx = indices[:, None, :].expand(n, c, indices.shape[1])
+    p = pred.reshape(n, c, h * w).gather(2, idx)
+    t = target.reshape(n, c, h * w).gather(2, idx)
+    return (p - t).abs().mean()
+
+
+def downsample_normals(normals: torch.Tensor, size: int = PREDICTOR_INPUT_SIZE) -> torch.Tensor:
+    """Area-average (N, 3, H, W) -> (N, 3, size, size); H must be a multiple of size (256 -> 64: 4x4 pooling)."""
+    _check_image(normals, 3, None, "normals")
+    if normals.shape[2] % size or normals.shape[3] % size:
+        raise ValueError(f"normal image side must be a multiple of {size}, got {tuple(normals.shape)}")
+    k = normals.shape[2] // size
+    return F.avg_pool2d(normals, k) if k > 1 else normals
+
+
+# ----------------------------------------------------------------------------------------------
+# Cameras for view-frame predictions
+# ----------------------------------------------------------------------------------------------
+
+
+def view_frame_cameras(input_cameras: torch.Tensor, other_cameras: torch.Tensor | None = None) -> torch.Tensor:
+    """Cameras that render a view-frame mesh from its input view and K other views, batched.
+
+    The torch counterpart of :func:`engine.camera.relative_camera` on the (16,) packing of
+    :meth:`engine.camera.Camera.to_array`: view k of item b gets rotation
+    ``R_k @ R_in.T``, translation ``t_k`` and view k's intrinsics (focal, principal point).
+    View 0 is the input view itself (identity rotation, the input camera's t and framed intrinsics).
+
+    Args:
+        input_cameras: (B, 16) input (framed) cameras.
+        other_cameras: (B, K, 16) other known views of the same shapes, or None (K = 0).
+
+    Returns:
+        (B, 1 + K, 16) cameras, same dtype as the inputs.
+    """
+    if input_cameras.ndim != 2 or input_cameras.shape[1] != 16:
+        raise ValueError(f"input_cameras must be (B, 16), got {tuple(input_cameras.shape)}")
+    b = input_cameras.shape[0]
+    if other_cameras is None:
+        other_cameras = input_cameras.new_zeros((b, 0, 16))
+    if other_cameras.ndim != 3 or other_cameras.shape[0] != b or other_cameras.shape[2] != 16:
+        raise ValueError(f"other_cameras must be ({b}, K, 16), got {tuple(other_cameras.shape)}")
+    cams = torch.cat([input_cameras[:, None], other_cameras.to(input_cameras.dtype)], dim=1)  # (B, 1+K, 16)
+    r_in = input_cameras[:, :9].reshape(b, 1, 3, 3)
+    r = cams[..., :9].reshape(b, -1, 3, 3)
+    r_rel = r @ r_in.transpose(-1, -2)
+    return torch.cat([r_rel.reshape(b, -1, 9), cams[..., 9:]], dim=-1)
+
+
+__all__ = [
+    "GENERATOR_LEVELS",
+    "MeshPredictor",
+    "NormalGenerator",
+    "PatchDiscriminator",
+    "SKETCH_SIZE",
+    "adversarial_loss",
+    "downsample_normals",
+    "generator_channels",
+    "global_l1_loss",
+    "local_l1_loss",
+    "sample_edge_pixels",
+    "sobel_magnitude",
+    "view_frame_cameras",
+]
