@@ -237,3 +237,20 @@ def test_mesh_folder_source_with_a_broken_file(tmp_path):
     assert any("mugs/bad" in m for m in messages) and any("1 of 2 shapes failed" in m for m in messages)
     assert summary["rendered"] == 1 and len(summary["failed"]) == 1
     assert os.path.isfile(tmp_path / "out" / "shapes" / "mugs" / "mug.npz")
+
+
+def test_samples_export_split_sketches_that_the_engine_reads_back(built, tmp_path):
+    from engine.preprocess import load_sketch_image
+    from training.data.dataset import load_manifest
+    from training.data.preview import write_samples
+
+    root = built[0]
+    shapes = load_manifest(root)["shapes"]
+    split = shapes[0]["split"]
+    written = write_samples(root, tmp_path / "samples", split=split, per_category=1, view=1)
+    assert {p.name.split("_")[0] for p in written} == {s["category"] for s in shapes if s["split"] == split}
+    for p in written:
+        ink = load_sketch_image(p)  # dark-on-white file -> 1 = ink, and the same drawing as stored
+        rec = next(s for s in shapes if p.name.startswith(f"{s['category']}_{s['shape_id']}_"))
+        stored = np.load(root / rec["file"])["sketch"][1].astype(np.float32) / 255.0
+        assert np.abs(ink - stored).max() <= 1.0 / 255.0 + 1e-6

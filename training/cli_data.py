@@ -97,7 +97,7 @@ def register(commands, bench) -> None:
     data = _one_line_errors(commands.add_parser(
         "data", help="build, merge and preview the training dataset",
         description="Render training data (sketch, normal image, silhouette per view). "
-                    "`sketchmesh data --source ... --out DIR` builds; `data merge` and `data preview` are sub-actions."))
+                    "`sketchmesh data --source ... --out DIR` builds; `data merge`, `data preview` and `data samples` are sub-actions."))
     _add_build_flags(data, required_out=False)
     data.set_defaults(func=cmd_build)
     actions = data.add_subparsers(dest="data_command", metavar="ACTION")
@@ -116,6 +116,15 @@ def register(commands, bench) -> None:
     preview.add_argument("--augment-strength", type=_unit_float, default=0.0, help="show load-time augmentation")
     preview.add_argument("--seed", type=int, default=0)
     preview.set_defaults(func=cmd_preview)
+    samples = _one_line_errors(actions.add_parser("samples", help="export sketches of a split as PNG files to open in the app"))
+    samples.add_argument("dir", help="dataset folder")
+    samples.add_argument("-o", "--output", required=True, help="folder to write the PNG files into")
+    samples.add_argument("--split", default="test", choices=("train", "val", "test"))
+    samples.add_argument("--per-category", type=_positive_int, default=1, help="shapes per category (default 1)")
+    samples.add_argument("--view", type=int, default=3, help="view index of each shape (default 3: 45 degrees azimuth)")
+    samples.add_argument("--augment-strength", type=_unit_float, default=0.0, help="hand-drawn augmentation (default clean)")
+    samples.add_argument("--seed", type=int, default=0)
+    samples.set_defaults(func=cmd_samples)
 
     b = _one_line_errors(bench.add_parser(
         "data", help="data generation speed: views/s per core, growth with mesh size, line-drawing share"))
@@ -185,6 +194,15 @@ def cmd_preview(args: argparse.Namespace) -> int:
     h, w = write_contact_sheet(args.dir, args.output, rows=args.rows, views_per_shape=args.views_per_shape,
                                augment_strength=args.augment_strength, seed=args.seed)
     print(f"wrote {args.output} ({w}x{h})")
+    return 0
+
+
+def cmd_samples(args: argparse.Namespace) -> int:
+    from training.data.preview import write_samples
+
+    written = write_samples(args.dir, args.output, split=args.split, per_category=args.per_category, view=args.view,
+                            augment_strength=args.augment_strength, seed=args.seed)
+    print(f"wrote {len(written)} sketches to {args.output}")
     return 0
 
 

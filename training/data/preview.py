@@ -83,3 +83,45 @@ def write_contact_sheet(root: str | os.PathLike, out: str | os.PathLike, **kwarg
         raise DatasetError(f"cannot encode the contact sheet for {out}")
     atomic_write_bytes(out, buf.tobytes())
     return img.shape[0], img.shape[1]
+
+
+def write_samples(root: str | os.PathLike, out: str | os.PathLike, *, split: str = "test", per_category: int = 1,
+                  view: int = 3, augment_strength: float = 0.0, seed: int = 0) -> list[Path]:
+    """Export sketches of a dataset split as PNG files a user can open (dark strokes on white).
+
+    Files are named ``<category>_<shape_id>_v<view>.png``; the first ``per_category`` shapes of
+    each category in ``split`` are taken, view ``view`` of each (modulo its view count).
+    """
+    import cv2
+
+    from training.data.lines import sketch_to_file_image
+
+    manifest = load_manifest(root)
+    chosen: dict[str, list] = {}
+    for s in manifest["shapes"]:
+        if s["split"] == split and len(chosen.setdefault(s["category"], [])) < per_category:
+            chosen[s["category"]].append(s)
+    if not any(chosen.values()):
+        raise DatasetError(f"{root}: no shapes in the {split!r} split")
+    cache = ShapeFileCache(capacity=2)
+    written = []
+    for cat in sorted(chosen):
+        for rec in chosen[cat]:
+            path = str(Path(root) / rec["file"])
+            v = view % int(rec["num_views"])
+            if augment_strength > 0:
+                from training.data.augment import render_sketch
+                from training.data.render import view_polylines
+
+                arrays = {k: cache.get(path, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+                size = cache.get(path, "sketch").shape[-1]
+                ink = render_sketch(view_polylines(arrays, v), size, augment_strength, [seed, v])
+            else:
+                ink = cache.get(path, "sketch")[v].astype(np.float64) / 255.0
+            ok, buf = cv2.imencode(".png", sketch_to_file_image(ink))
+            if not ok:
+                raise DatasetError(f"could not encode the sketch of {rec['shape_id']}")
+            target = Path(out) / f"{rec['category']}_{rec['shape_id']}_v{v}.png"
+            atomic_write_bytes(target, buf.tobytes())
+            written.append(target)
+    return written
