@@ -12,47 +12,14 @@ import json
 import os
 import sys
 import time
-import types
 from pathlib import Path
+
+from engine.cliutil import int_in, one_line_errors
 
 MAX_SUBDIVIDE_LEVELS = 4
 """--subdivide limit: 1280 faces * 4**4 = 327,680 faces."""
 
 MAX_SMOOTH_ITERATIONS = 1000
-
-
-def _one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Make a sub-parser report bad flags on one line (no usage block) and catch unknown flags itself.
-
-    Without the second part, unknown flags would be reported by the top-level parser with its
-    multi-line usage text.
-    """
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-    def parse_known_args(self, args=None, namespace=None):
-        ns, extras = argparse.ArgumentParser.parse_known_args(self, args, namespace)
-        if extras:
-            self.error(f"unrecognized arguments: {' '.join(extras)}")
-        return ns, extras
-
-    parser.error = types.MethodType(error, parser)
-    parser.parse_known_args = types.MethodType(parse_known_args, parser)
-    return parser
-
-
-def _int_in(lo: int, hi: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if not lo <= value <= hi:
-            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {value}")
-        return value
-
-    return parse
 
 
 FORMATS = ("obj", "glb", "gltf", "ply", "stl")  # mirrors engine.export.WRITERS (checked by a test)
@@ -75,12 +42,12 @@ def register(commands, bench) -> None:
                    "a folder for several sketches")
     p.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,  # keeps `sketchmesh --models DIR infer`
                    help="model folder replacing the bundled models")
-    p.add_argument("--smooth", type=_int_in(0, MAX_SMOOTH_ITERATIONS), default=0, metavar="N", help="Taubin smoothing iterations")
-    p.add_argument("--subdivide", type=_int_in(0, MAX_SUBDIVIDE_LEVELS), default=0, metavar="N",
+    p.add_argument("--smooth", type=int_in(0, MAX_SMOOTH_ITERATIONS), default=0, metavar="N", help="Taubin smoothing iterations")
+    p.add_argument("--subdivide", type=int_in(0, MAX_SUBDIVIDE_LEVELS), default=0, metavar="N",
                    help=f"Loop subdivision levels (0..{MAX_SUBDIVIDE_LEVELS})")
-    p.add_argument("--threads", type=_int_in(1, 256), default=None, metavar="N", help="inference threads (default: physical cores)")
+    p.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads (default: physical cores)")
     p.set_defaults(func=cmd_infer)
-    _one_line_errors(p)
+    one_line_errors(p)
 
     b = bench.add_parser(
         "engine",
@@ -90,15 +57,15 @@ def register(commands, bench) -> None:
     )
     b.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,
                    help="model folder (default: the bundled models)")
-    b.add_argument("--runs", type=_int_in(1, 100_000), default=50, metavar="N", help="timed runs per variant (default 50)")
-    b.add_argument("--warmup", type=_int_in(0, 1000), default=3, metavar="N", help="untimed runs first (default 3)")
-    b.add_argument("--threads", type=_int_in(1, 256), default=None, metavar="N", help="inference threads")
+    b.add_argument("--runs", type=int_in(1, 100_000), default=50, metavar="N", help="timed runs per variant (default 50)")
+    b.add_argument("--warmup", type=int_in(0, 1000), default=3, metavar="N", help="untimed runs first (default 3)")
+    b.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads")
     b.add_argument("--sketch", action="append", metavar="IMAGE", help="sketch image(s) to use (default: bundled samples "
                    "or synthetic sketches)")
     b.add_argument("--variants", default="fp32,int8-predictor,int8", help="comma list of fp32, int8-predictor, int8")
     b.add_argument("--json", metavar="PATH", help="write the records as JSON")
     b.set_defaults(func=cmd_bench_engine)
-    _one_line_errors(b)
+    one_line_errors(b)
 
 
 def _write_normals_png(normals, path: Path) -> None:

@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
-import sys
 
-from engine.errors import SketchmeshError
+from engine.cliutil import one_line_errors, run_guarded
 
 REGISTRARS = (
     "engine.cli",  # infer, bench engine
@@ -33,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Sketch-based modelling: one freehand sketch in, a 3D mesh out. "
         "Run with no subcommand to start the desktop app.",
     )
+    one_line_errors(parser)
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     from app.main import add_gui_arguments
 
@@ -54,23 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    debug = args.debug or os.environ.get("SKETCHMESH_DEBUG") == "1"
-    try:
-        if args.command is None:
-            from app.main import run_gui
+    if args.command is None:
+        from app.main import run_gui
 
-            return int(run_gui(args) or 0)
-        return int(args.func(args) or 0)
-    except SketchmeshError as exc:
-        if debug:
-            raise
-        print(f"sketchmesh: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    except KeyboardInterrupt:
-        print("sketchmesh: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # last resort: one line, not a traceback
-        if debug:
-            raise
-        print(f"sketchmesh: error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", file=sys.stderr)
-        return 1
+        return run_guarded(run_gui, args)
+    return run_guarded(args.func, args)

@@ -5,12 +5,21 @@ import pytest
 import trimesh
 
 from engine.camera import (
-    Camera, frame_camera, look_at, ndc_to_pixel, normalize_vertices, paper_views, pixel_centers_ndc,
-    project, relative_camera, view_camera, encode_normals, decode_normals,
+    Camera,
+    decode_normals,
+    encode_normals,
+    frame_camera,
+    look_at,
+    ndc_to_pixel,
+    normalize_vertices,
+    paper_views,
+    pixel_centers_ndc,
+    project,
+    relative_camera,
+    view_camera,
 )
 from engine.icosphere import icosphere, level_for_vertex_count
 from engine.mesh import Mesh, adjacent_face_pairs, face_normals, unique_edges, vertex_normals
-
 
 # ---- mesh value type -------------------------------------------------------------------
 

@@ -6,34 +6,12 @@ command functions, through :func:`training._torch.require_torch`.
 
 from __future__ import annotations
 
-import argparse
+import math
 
+from engine.cliutil import float_in, int_in, one_line_errors, positive_int
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def _resolution(text: str) -> int:
-    value = _positive_int(text)
-    if value > 2048:
-        raise argparse.ArgumentTypeError(f"resolution must be at most 2048, got {value}")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
-    if not value >= 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value
+_resolution = int_in(1, 2048)
+_non_negative_float = float_in(0.0, math.inf)
 
 
 def _cmd_bench_renderer(args) -> int:
@@ -56,34 +34,34 @@ def _cmd_bench_fit(args) -> int:
 
 def register(commands, bench) -> None:
     """Add ``bench renderer`` and ``bench fit`` to the ``bench`` sub-parsers (``commands`` unused)."""
-    p = bench.add_parser(
+    p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
         description="Forward and forward+backward time (median), peak memory and error against a "
         "4x-supersampled render, on bumpy 642-vertex spheres from random views.",
-    )
+    ))
     p.add_argument("--resolutions", type=_resolution, nargs="+", default=[32, 64, 128, 256], metavar="R")
-    p.add_argument("--batches", type=_positive_int, nargs="+", default=[1, 16, 64], metavar="B")
-    p.add_argument("--repeats", type=_positive_int, default=5, help="timed runs per configuration (median)")
-    p.add_argument("--threads", type=_positive_int, default=2, help="torch intra-op threads (default 2)")
+    p.add_argument("--batches", type=positive_int, nargs="+", default=[1, 16, 64], metavar="B")
+    p.add_argument("--repeats", type=positive_int, default=5, help="timed runs per configuration (median)")
+    p.add_argument("--threads", type=positive_int, default=2, help="torch intra-op threads (default 2)")
     p.add_argument("--dense-max-mb", type=_non_negative_float, default=1024.0,
                    help="run the dense baseline where its estimated memory per image is below this (0: never)")
-    p.add_argument("--dense-max-batch", type=_positive_int, default=16,
+    p.add_argument("--dense-max-batch", type=positive_int, default=16,
                    help="largest batch at which the (slow) dense baseline runs")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--timeout", type=_positive_int, default=1800, help="seconds per configuration")
+    p.add_argument("--timeout", type=positive_int, default=1800, help="seconds per configuration")
     p.add_argument("--in-process", action="store_true",
                    help="measure in this process (faster to start; peak_mb then accumulates across rows)")
     p.add_argument("--json", metavar="PATH", help="write the records as a JSON list")
     p.set_defaults(func=_cmd_bench_renderer)
 
-    q = bench.add_parser(
+    q = one_line_errors(bench.add_parser(
         "fit",
         help="fit the template sphere to a target mesh's multi-view renders through the rasterizer",
-    )
+    ))
     q.add_argument("--target", required=True, metavar="MESH_FILE", help="target mesh file")
-    q.add_argument("--views", type=_positive_int, default=8)
-    q.add_argument("--iters", type=_positive_int, default=300)
+    q.add_argument("--views", type=positive_int, default=8)
+    q.add_argument("--iters", type=positive_int, default=300)
     q.add_argument("--resolution", type=_resolution, default=64)
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", metavar="PATH", help="write the results as JSON")

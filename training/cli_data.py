@@ -22,44 +22,14 @@ import contextlib
 import json
 import sys
 import time
-import types
 import warnings
 
+from engine.cliutil import one_line_errors, positive_int, unit_float
 from engine.errors import SketchmeshError
 
 
 class DataCommandError(SketchmeshError):
     """A `sketchmesh data` flag or input is unusable."""
-
-
-def _one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Report bad flags on one line (no usage block)."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-    parser.error = types.MethodType(error, parser)
-    return parser
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {v}")
-    return v
-
-
-def _unit_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0.0 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {v}")
-    return v
 
 
 def _elevation(text: str) -> float:
@@ -76,63 +46,63 @@ def _add_build_flags(p: argparse.ArgumentParser, required_out: bool) -> None:
     p.add_argument("--source", default="procedural",
                    help="procedural | shapenet:PATH | meshes:PATH (default: procedural)")
     p.add_argument("--out", required=required_out, default=None, help="dataset folder to write")
-    p.add_argument("--shapes-per-category", type=_positive_int, default=None,
+    p.add_argument("--shapes-per-category", type=positive_int, default=None,
                    help="shapes per category (procedural default 10; other sources: at most this many)")
     p.add_argument("--categories", nargs="+", default=None, metavar="NAME", help="only these categories")
-    p.add_argument("--views", type=_positive_int, default=24, help="azimuths per elevation (default 24)")
+    p.add_argument("--views", type=positive_int, default=24, help="azimuths per elevation (default 24)")
     p.add_argument("--elevations", type=_elevation, nargs="+", default=[30.0], metavar="DEG",
                    help="elevations in degrees (default 30)")
-    p.add_argument("--size", type=_positive_int, default=256, help="sketch / normal image size (default 256)")
-    p.add_argument("--small-size", type=_positive_int, default=64, help="predictor target size (default 64)")
-    p.add_argument("--workers", type=_positive_int, default=1, help="processes rendering shapes in parallel")
+    p.add_argument("--size", type=positive_int, default=256, help="sketch / normal image size (default 256)")
+    p.add_argument("--small-size", type=positive_int, default=64, help="predictor target size (default 64)")
+    p.add_argument("--workers", type=positive_int, default=1, help="processes rendering shapes in parallel")
     p.add_argument("--shard", default=None, metavar="K/N", help="render only shard K of N (0 <= K < N)")
     p.add_argument("--seed", type=int, default=0, help="seed of the stored augmented sketches (default 0)")
-    p.add_argument("--augment-strength", type=_unit_float, default=0.0,
+    p.add_argument("--augment-strength", type=unit_float, default=0.0,
                    help="also store an augmented sketch per view at this strength (the trainer re-augments at load)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def register(commands, bench) -> None:
     """Add ``data`` (build / merge / preview) and ``bench data``."""
-    data = _one_line_errors(commands.add_parser(
+    data = one_line_errors(commands.add_parser(
         "data", help="build, merge and preview the training dataset",
         description="Render training data (sketch, normal image, silhouette per view). "
                     "`sketchmesh data --source ... --out DIR` builds; `data merge`, `data preview` and `data samples` are sub-actions."))
     _add_build_flags(data, required_out=False)
     data.set_defaults(func=cmd_build)
     actions = data.add_subparsers(dest="data_command", metavar="ACTION")
-    build = _one_line_errors(actions.add_parser("build", help="same as `sketchmesh data --source ... --out DIR`"))
+    build = one_line_errors(actions.add_parser("build", help="same as `sketchmesh data --source ... --out DIR`"))
     _add_build_flags(build, required_out=True)
     build.set_defaults(func=cmd_build)
-    merge = _one_line_errors(actions.add_parser("merge", help="merge shard outputs into one dataset"))
+    merge = one_line_errors(actions.add_parser("merge", help="merge shard outputs into one dataset"))
     merge.add_argument("out", help="merged dataset folder")
     merge.add_argument("shards", nargs="+", help="shard dataset folders")
     merge.set_defaults(func=cmd_merge)
-    preview = _one_line_errors(actions.add_parser("preview", help="contact sheet: sketch | normals | silhouette rows"))
+    preview = one_line_errors(actions.add_parser("preview", help="contact sheet: sketch | normals | silhouette rows"))
     preview.add_argument("dir", help="dataset folder")
     preview.add_argument("-o", "--output", required=True, help="PNG to write")
-    preview.add_argument("--rows", type=_positive_int, default=8, help="shapes (rows) on the sheet (default 8)")
-    preview.add_argument("--views-per-shape", type=_positive_int, default=2, help="views per row (default 2)")
-    preview.add_argument("--augment-strength", type=_unit_float, default=0.0, help="show load-time augmentation")
+    preview.add_argument("--rows", type=positive_int, default=8, help="shapes (rows) on the sheet (default 8)")
+    preview.add_argument("--views-per-shape", type=positive_int, default=2, help="views per row (default 2)")
+    preview.add_argument("--augment-strength", type=unit_float, default=0.0, help="show load-time augmentation")
     preview.add_argument("--seed", type=int, default=0)
     preview.set_defaults(func=cmd_preview)
-    samples = _one_line_errors(actions.add_parser("samples", help="export sketches of a split as PNG files to open in the app"))
+    samples = one_line_errors(actions.add_parser("samples", help="export sketches of a split as PNG files to open in the app"))
     samples.add_argument("dir", help="dataset folder")
     samples.add_argument("-o", "--output", required=True, help="folder to write the PNG files into")
     samples.add_argument("--split", default="test", choices=("train", "val", "test"))
-    samples.add_argument("--per-category", type=_positive_int, default=1, help="shapes per category (default 1)")
+    samples.add_argument("--per-category", type=positive_int, default=1, help="shapes per category (default 1)")
     samples.add_argument("--view", type=int, default=3, help="view index of each shape (default 3: 45 degrees azimuth)")
-    samples.add_argument("--augment-strength", type=_unit_float, default=0.0, help="hand-drawn augmentation (default clean)")
+    samples.add_argument("--augment-strength", type=unit_float, default=0.0, help="hand-drawn augmentation (default clean)")
     samples.add_argument("--seed", type=int, default=0)
     samples.set_defaults(func=cmd_samples)
 
-    b = _one_line_errors(bench.add_parser(
+    b = one_line_errors(bench.add_parser(
         "data", help="data generation speed: views/s per core, growth with mesh size, line-drawing share"))
-    b.add_argument("--views", type=_positive_int, default=3, help="views timed per mesh (default 3)")
-    b.add_argument("--size", type=_positive_int, default=256)
-    b.add_argument("--faces", type=_positive_int, nargs="+", default=[1000, 10000, 100000],
+    b.add_argument("--views", type=positive_int, default=3, help="views timed per mesh (default 3)")
+    b.add_argument("--size", type=positive_int, default=256)
+    b.add_argument("--faces", type=positive_int, nargs="+", default=[1000, 10000, 100000],
                    help="target face counts (default 1000 10000 100000)")
-    b.add_argument("--augment-strength", type=_unit_float, default=0.5)
+    b.add_argument("--augment-strength", type=unit_float, default=0.5)
     b.add_argument("--json", default=None, metavar="PATH", help="write the records as JSON")
     b.set_defaults(func=cmd_bench_data)
 

@@ -12,6 +12,7 @@ import dataclasses
 import os
 import sys
 
+from engine.cliutil import run_guarded
 from engine.errors import SketchmeshError
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
@@ -165,22 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     register(commands, None)
     args = parser.parse_args(argv)
-    debug = args.debug or os.environ.get("SKETCHMESH_DEBUG") == "1"
-    try:
-        return int(args.func(args) or 0)
-    except SketchmeshError as exc:
-        if debug:
-            raise
-        print(f"sketchmesh: error: {exc}", file=sys.stderr)
-        return exc.exit_code
-    except KeyboardInterrupt:
-        print("sketchmesh: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # last resort: one line, not a traceback
-        if debug:
-            raise
-        print(f"sketchmesh: error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", file=sys.stderr)
-        return 1
+    return run_guarded(args.func, args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,108 @@
+"""Shared command-line plumbing: one-line flag errors, validated argument types, the error guard.
+
+Every layer's subcommands (``engine.cli``, ``training.cli_*``) and the ``sketchmesh``
+dispatcher use these, so a bad flag or a failing command reads the same everywhere: one
+``sketchmesh ...: error: ...`` line on stderr and a non-zero exit, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import types
+from collections.abc import Callable
+
+from engine.errors import SketchmeshError
+
+
+def one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Make a parser report bad flags on one line (no usage block) and catch unknown flags itself.
+
+    Without the second part, a sub-parser's unknown flags would be reported by the
+    top-level parser with its multi-line usage text. Returns the same parser.
+    """
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        ns, extras = argparse.ArgumentParser.parse_known_args(self, args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return ns, extras
+
+    parser.error = types.MethodType(error, parser)
+    parser.parse_known_args = types.MethodType(parse_known_args, parser)
+    return parser
+
+
+def int_in(lo: int, hi: int) -> Callable[[str], int]:
+    """argparse type: an integer in [lo, hi]."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError(f"must be in [{lo}, {hi}], got {value}")
+        return value
+
+    return parse
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer > 0."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {value}")
+    return value
+
+
+def float_in(lo: float, hi: float) -> Callable[[str], float]:
+    """argparse type: a finite number in [lo, hi] (``hi`` may be ``math.inf`` for 'no upper bound')."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"must be a finite number in [{lo}, {hi}], got {text!r}")
+        return value
+
+    return parse
+
+
+unit_float = float_in(0.0, 1.0)
+"""argparse type: a number in [0, 1]."""
+
+
+def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse.Namespace) -> int:
+    """Run a command function; turn errors into one stderr line and an exit code.
+
+    :class:`SketchmeshError` -> its message and ``exit_code``; Ctrl-C -> 130; anything else ->
+    its type and message, exit 1. With ``args.debug`` or ``SKETCHMESH_DEBUG=1`` the exception
+    propagates with its traceback instead.
+    """
+    debug = getattr(args, "debug", False) or os.environ.get("SKETCHMESH_DEBUG") == "1"
+    try:
+        return int(func(args) or 0)
+    except SketchmeshError as exc:
+        if debug:
+            raise
+        print(f"sketchmesh: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("sketchmesh: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # last resort: one line, not a traceback
+        if debug:
+            raise
+        print(f"sketchmesh: error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", file=sys.stderr)
+        return 1

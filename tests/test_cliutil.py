@@ -1,0 +1,61 @@
+"""Shared CLI plumbing: validated argument types and the one-line error guard."""
+
+import argparse
+import math
+
+import pytest
+
+from engine.cliutil import float_in, int_in, one_line_errors, positive_int, run_guarded, unit_float
+from engine.errors import EmptySketchError
+
+
+@pytest.mark.parametrize("parse, text, value", [
+    (positive_int, "3", 3), (int_in(0, 4), "0", 0), (int_in(0, 4), "4", 4),
+    (unit_float, "0.25", 0.25), (float_in(0.0, math.inf), "1e6", 1e6),
+])
+def test_types_accept(parse, text, value):
+    assert parse(text) == value
+
+
+@pytest.mark.parametrize("parse, text", [
+    (positive_int, "0"), (positive_int, "x"), (positive_int, "1.5"), (int_in(0, 4), "5"),
+    (unit_float, "1.01"), (unit_float, "nan"), (float_in(0.0, math.inf), "inf"), (float_in(0.0, 1.0), "-0.1"),
+])
+def test_types_reject_with_argparse_errors(parse, text):
+    with pytest.raises(argparse.ArgumentTypeError):
+        parse(text)
+
+
+def test_one_line_errors_report_unknown_flags_on_one_line(capsys):
+    parser = one_line_errors(argparse.ArgumentParser(prog="tool"))
+    parser.add_argument("--n", type=positive_int)
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args(["--n", "2", "--bogus"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unrecognized arguments: --bogus" in err and "usage" not in err
+
+
+def _raise(exc):
+    def func(args):
+        raise exc
+    return func
+
+
+@pytest.mark.parametrize("exc, code, text", [
+    (EmptySketchError("the sketch is empty"), 2, "sketchmesh: error: the sketch is empty"),
+    (KeyboardInterrupt(), 130, "sketchmesh: interrupted"),
+    (RuntimeError("boom"), 1, "sketchmesh: error: RuntimeError: boom"),
+])
+def test_run_guarded_turns_errors_into_one_line_and_an_exit_code(exc, code, text, capsys, monkeypatch):
+    monkeypatch.delenv("SKETCHMESH_DEBUG", raising=False)
+    assert run_guarded(_raise(exc), argparse.Namespace(debug=False)) == code
+    err = capsys.readouterr().err
+    assert err.strip().startswith(text) and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_run_guarded_passes_results_and_debug_reraises():
+    assert run_guarded(lambda args: None, argparse.Namespace()) == 0
+    assert run_guarded(lambda args: 3, argparse.Namespace()) == 3
+    with pytest.raises(RuntimeError):
+        run_guarded(_raise(RuntimeError("boom")), argparse.Namespace(debug=True))
