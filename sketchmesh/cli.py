@@ -43,9 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
-            if exc.name != name:  # a real missing dependency inside the module
-                raise
-            continue  # that layer has not registered commands yet
+            missing = exc.name or ""
+            if not (name == missing or name.startswith(missing + ".")):
+                raise  # a real missing dependency inside the module
+            continue  # that layer is not installed (e.g. the frozen app ships without training)
         module.register(commands, bench)
     return parser
 

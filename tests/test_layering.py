@@ -61,3 +61,23 @@ def test_no_source_file_imports_across_layers(package, forbidden):
     for path in files:
         bad = _imports(path) & forbidden
         assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"
+
+
+def test_cli_works_without_the_training_package(tmp_path):
+    """The frozen app ships without `training`: the dispatcher must still build and run `infer --help`."""
+    code = (
+        "import sys, importlib.abc\n"
+        "class Block(importlib.abc.MetaPathFinder):\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'training' or name.startswith('training.'):\n"
+        "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "from sketchmesh.cli import build_parser, main\n"
+        "p = build_parser()\n"
+        "names = set(p._subparsers._group_actions[0].choices)\n"
+        "assert 'infer' in names and 'train' not in names and 'data' not in names, names\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
