@@ -231,3 +231,10 @@ class MeshViewport(QWidget):
             return
         self._closed = True
         self.plotter.close()
+        # pyvistaqt keeps Python wrappers of its GL context and of the widget's internal
+        # QSurface. When Qt deletes those C++ objects before the context's aboutToBeDestroyed
+        # reaches pyvistaqt, the stale wrappers stay registered, and PySide hands them out for
+        # new objects at the same address (seen: a QMenu typed QSurface). Drop them now.
+        forget = getattr(self.plotter, "_forget_context", None)
+        if callable(forget):
+            forget()
