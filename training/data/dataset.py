@@ -335,15 +335,7 @@ def merge_datasets(out: str | os.PathLike, shard_dirs: Sequence[str | os.PathLik
     copied = 0
     for d in shard_dirs:
         d = Path(d)
-        mpath = d / MANIFEST
-        if not mpath.is_file():
-            raise DatasetError(f"{d}: not a dataset folder (no {MANIFEST})")
-        try:
-            manifest = json.loads(mpath.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise DatasetError(f"{mpath}: cannot read manifest ({exc})") from None
-        if manifest.get("format") != FORMAT_ID:
-            raise DatasetError(f"{mpath}: unknown dataset format {manifest.get('format')!r}")
+        manifest = load_manifest(d)
         if manifest["settings"] is not None:
             if settings is not None and manifest["settings"] != settings:
                 raise DatasetError(f"{d}: rendered with different settings than the other shards")
