@@ -27,7 +27,6 @@ from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
     QMainWindow,
-    QMenu,
     QMessageBox,
     QSplitter,
     QStyle,
@@ -274,13 +273,6 @@ class MainWindow(QMainWindow):
         self.actions[key] = act
         return act
 
-    def _menu(self, bar, title: str) -> QMenu:
-        """A menu constructed in Python and added to the bar: a fresh wrapper, never a stale
-        one PySide could return for a C++-created menu at a reused address (see viewport)."""
-        menu = QMenu(title, self)
-        bar.addMenu(menu)
-        return menu
-
     def _build_actions(self) -> None:
         self.actions: dict[str, QAction] = {}
         SP = QStyle.StandardPixmap
@@ -315,19 +307,19 @@ class MainWindow(QMainWindow):
         a("about", "&About Sketchmesh", self.about)
 
         mb = self.menuBar()
-        m = self._menu(mb, "&File")
+        m = mb.addMenu("&File")
         for k in ("new", "open", "save", "save_as", "export_png", "export_mesh", None, "load_models", "remove_background", None, "quit"):
             m.addSeparator() if k is None else m.addAction(self.actions[k])
-        m = self._menu(mb, "&Edit")
+        m = mb.addMenu("&Edit")
         for k in ("undo", "redo", None, "clear"):
             m.addSeparator() if k is None else m.addAction(self.actions[k])
-        m = self._menu(mb, "&Tools")
+        m = mb.addMenu("&Tools")
         for k in ("pen", "eraser"):
             m.addAction(self.actions[k])
-        m = self._menu(mb, "&View")
+        m = mb.addMenu("&View")
         for k in [f"view_{p}" for p in VIEW_PRESETS] + [None, "reset_view", "wireframe", "guide"]:
             m.addSeparator() if k is None else m.addAction(self.actions[k])
-        m = self._menu(mb, "&Help")
+        m = mb.addMenu("&Help")
         m.addAction(self.actions["about"])
 
         tb = QToolBar("Main")
