@@ -102,6 +102,40 @@ def test_normal_loss_matches_naive_sum_and_mean():
     _close(float(got_mean), naive_normal_loss(pred, target) / (3 * 5 * 4), **TOL64)
 
 
+def test_normal_loss_mask_keeps_only_masked_pixels():
+    pred, target = torch.zeros(1, 3, 2, 2), torch.zeros(1, 3, 2, 2)
+    pred[0, :, 0, 0] = torch.tensor([0.5, 0.25, 0.0])  # 0.75 inside the mask
+    pred[0, :, 1, 1] = 1.0  # 3.0 outside
+    mask = torch.tensor([[[1.0, 1.0], [0.0, 0.0]]])
+    assert float(normal_loss(pred, target)) == pytest.approx(3.75)
+    assert float(normal_loss(pred, target, mask=mask)) == pytest.approx(0.75)
+    with pytest.raises(ValueError, match="mask"):
+        normal_loss(pred, target, mask=torch.ones(1, 3, 3))
+
+
+def test_mesh_loss_target_region_ignores_pixels_outside_the_target():
+    mesh = icosphere(1)
+    x = torch.from_numpy(mesh.vertices.copy())[None].float()
+    target_sil = torch.zeros(1, 4, 4)
+    target_sil[0, :2] = 1.0  # target covers the top half
+    target_n = target_sil[:, None].expand(1, 3, 4, 4) * 0.5
+    pred_n = torch.full((1, 3, 4, 4), 0.5)  # covers everything with the target's normal
+    scale = 64 * 64 / 16
+    image = MeshLoss(mesh)
+    target = MeshLoss(mesh, normal_region="target")
+    _, log_i = image(x, pred_n, target_n, torch.ones(1, 4, 4), target_sil)
+    _, log_t = target(x, pred_n, target_n, torch.ones(1, 4, 4), target_sil)
+    assert log_i["normal"] == pytest.approx(8 * 1.5 * scale)  # 8 over-covered pixels at 3 x 0.5
+    assert log_t["normal"] == 0.0  # over-coverage is left to the IoU term
+    # an uncovered target pixel still costs its full encoded normal
+    _, log_u = target(x, torch.zeros(1, 3, 4, 4), target_n, torch.zeros(1, 4, 4), target_sil)
+    assert log_u["normal"] == pytest.approx(8 * 1.5 * scale)
+    with pytest.raises(ValueError, match="normal_region"):
+        MeshLoss(mesh, normal_region="both")
+    with pytest.raises(ValueError, match="target silhouette"):
+        target(x, pred_n, target_n)
+
+
 def test_normal_loss_rejects_bad_shapes_and_reduction():
     a = torch.zeros(1, 3, 4, 4)
     with pytest.raises(ValueError, match=r"got \(1, 3, 4, 4\) and \(1, 3, 4, 5\)"):

@@ -142,3 +142,50 @@ def test_export_bad_input_is_a_clear_error(run_dir, tmp_path):
     with pytest.raises(ValueError, match="sketches"):
         export_models(models["generator"], None, tmp_path / "o", config_json="{}", code_version="t",
                       sketches=torch.zeros(1, 1, 128, 128), normals64=torch.zeros(1, 3, 64, 64))
+
+
+# ---------------------------------------------------------------------- bench tradeoff
+
+
+def test_resample_level_nests_and_subdivides():
+    from training.tradeoff import TradeoffError, resample_level
+
+    fine = icosphere(3)
+    coarse = resample_level(fine, 3, 2)
+    ref = icosphere(2)
+    np.testing.assert_array_equal(coarse.vertices, ref.vertices)  # level 2's vertices are level 3's first 162
+    np.testing.assert_array_equal(coarse.faces, ref.faces)
+    up = resample_level(ref, 2, 3)
+    assert (up.num_vertices, up.num_faces) == (642, 1280)
+    assert resample_level(fine, 3, 3) is fine
+    with pytest.raises(TradeoffError, match="not level 2"):
+        resample_level(fine, 2, 1)
+
+
+def test_bench_tradeoff_reports_every_combination(run_dir, exported, tmp_path, capsys):
+    import json
+
+    from sketchmesh.cli import main
+
+    out = tmp_path / "tradeoff"
+    rc = main(["bench", "tradeoff", "--data", str(run_dir.parent / "data"), "--variant", f"tiny={exported}",
+               "--precisions", "fp32", "int8-predictor", "--levels", "1", "2", "3", "--bundled", "tiny",
+               "--threads", "1", "--quiet", "--out", str(out)])
+    assert rc == 0
+    records = json.loads((out / "tradeoff.json").read_text())
+    assert [(r["precision"], r["level"], r["vertices"]) for r in records] == [
+        (p, lv, n) for p in ("fp32", "int8-predictor") for lv, n in ((1, 42), (2, 162), (3, 642))]
+    for r in records:
+        assert 0.0 <= r["voxel_iou"] <= 1.0 and np.isfinite(r["chamfer_l1"]) and r["latency_ms_p50"] > 0
+    assert (out / "tradeoff.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    table = (out / "tradeoff.md").read_text()
+    assert table.count("(bundled)") == 1 and "| tiny (bundled) | fp32 | 2 (162) |" in table
+
+
+def test_bench_tradeoff_bad_variant_is_a_clear_error(run_dir, tmp_path, capsys):
+    from sketchmesh.cli import main
+
+    rc = main(["bench", "tradeoff", "--data", str(run_dir.parent / "data"), "--variant", "nofolder",
+               "--out", str(tmp_path)])
+    assert rc != 0
+    assert "LABEL=DIR" in capsys.readouterr().err

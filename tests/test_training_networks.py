@@ -112,6 +112,50 @@ def test_predictor_starts_near_the_template_and_offsets_stay_bounded():
     assert local.abs().max() <= p.local_scale + 1e-6 and glob.abs().max() <= p.global_scale + 1e-6
 
 
+def test_smoothing_operator_is_a_convex_averaging():
+    from training.networks import smoothing_operator
+
+    mesh = icosphere(2)
+    assert np.array_equal(smoothing_operator(mesh.faces, mesh.num_vertices, 0.0), np.eye(162, dtype=np.float32))
+    m = smoothing_operator(mesh.faces, mesh.num_vertices, 16.0).astype(np.float64)
+    np.testing.assert_allclose(m.sum(axis=1), 1.0, atol=1e-5)  # L 1 = 0: constants pass unchanged
+    np.testing.assert_allclose(m, m.T, atol=1e-6)
+    assert m.min() >= -1e-7  # M-matrix inverse: non-negative
+    # applying it to the smooth operator's own definition: (I + lam L) m = I
+    adj = np.zeros((162, 162))
+    f = np.asarray(mesh.faces)
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        adj[f[:, a], f[:, b]] = adj[f[:, b], f[:, a]] = 1
+    lap = np.diag(adj.sum(1)) - adj
+    np.testing.assert_allclose((np.eye(162) + 16.0 * lap) @ m, np.eye(162), atol=1e-4)
+    # a one-vertex spike is spread over its neighbourhood: the peak drops, the mean is kept
+    spike = np.zeros(162)
+    spike[5] = 1.0
+    out = m @ spike
+    assert out[5] < 0.5 and abs(out.sum() - 1.0) < 1e-5 and np.count_nonzero(out > 1e-3) > 7
+
+
+def test_predictor_smoothing_keeps_offsets_bounded_and_rejects_bad_values():
+    p = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=16.0)
+    plain = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=0.0)
+    plain.load_state_dict(p.state_dict())
+    x = torch.rand(2, 3, 64, 64)
+    p.eval()
+    plain.eval()
+    with torch.no_grad():
+        local_s, glob_s = p(x)
+        local_p, glob_p = plain(x)
+    torch.testing.assert_close(glob_s, glob_p)
+    torch.testing.assert_close(local_s, p.offset_smoother @ local_p)
+    with torch.no_grad():
+        p.local_head.weight.fill_(1e6)
+        local, _ = p(x)
+    assert torch.isfinite(local).all() and local.abs().max() <= p.local_scale + 1e-5
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="smoothing"):
+            MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=bad)
+
+
 # ---------------------------------------------------------------------------- generator losses
 
 

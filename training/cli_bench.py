@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer`` and ``sketchmesh bench fit``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit`` and ``bench tradeoff``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -32,8 +32,17 @@ def _cmd_bench_fit(args) -> int:
     return main_fit(args)
 
 
+def _cmd_bench_tradeoff(args) -> int:
+    from training._torch import require_torch
+
+    require_torch()
+    from training.tradeoff import main_tradeoff
+
+    return main_tradeoff(args)
+
+
 def register(commands, bench) -> None:
-    """Add ``bench renderer`` and ``bench fit`` to the ``bench`` sub-parsers (``commands`` unused)."""
+    """Add ``bench renderer``, ``bench fit`` and ``bench tradeoff`` to the ``bench`` sub-parsers (``commands`` unused)."""
     p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
@@ -66,3 +75,22 @@ def register(commands, bench) -> None:
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", metavar="PATH", help="write the results as JSON")
     q.set_defaults(func=_cmd_bench_fit)
+
+    t = one_line_errors(bench.add_parser(
+        "tradeoff",
+        help="voxel IoU against sketch-to-mesh latency of exported ONNX models (widths, int8, template levels)",
+        description="Runs the app's engine on the clean test sketches of a dataset for every model folder, "
+        "precision and template level; writes a table, JSON and a plot of IoU against latency.",
+    ))
+    t.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split is used)")
+    t.add_argument("--variant", action="append", required=True, metavar="LABEL=DIR",
+                   help="a folder of exported models and its label (repeat)")
+    t.add_argument("--precisions", nargs="+", default=["fp32"], choices=("fp32", "int8-predictor", "int8"))
+    t.add_argument("--levels", type=int_in(0, 6), nargs="+", default=None, metavar="L",
+                   help="template levels to report (default: the predictor's own)")
+    t.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="at most this many test sketches (0: all)")
+    t.add_argument("--threads", type=positive_int, default=2, help="ONNX Runtime threads (default 2)")
+    t.add_argument("--bundled", metavar="LABEL[:PRECISION]", help="mark this variant as the bundled choice")
+    t.add_argument("--out", required=True, metavar="DIR", help="folder for tradeoff.md/.json/.png")
+    t.add_argument("--quiet", action="store_true")
+    t.set_defaults(func=_cmd_bench_tradeoff)

@@ -40,6 +40,10 @@ class TrainConfig:
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
         predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512).
         template_level: icosphere level (3 -> 642 vertices, the paper's).
+        normal_region: "image" (Eq. 2 over the whole image, the paper's) or "target" (inside the
+            ground-truth silhouette only; see :class:`training.losses.MeshLoss`).
+        predictor_smoothing: lambda of the predictor's smooth offsets ``(I + lambda L)^-1`` (0: off;
+            see :class:`training.networks.MeshPredictor`).
         extra_views: K other known views rendered per sample for the mesh loss.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
@@ -81,6 +85,8 @@ class TrainConfig:
     predictor_hidden: int = 1024
     predictor_latent: int = 512
     template_level: int = 3
+    predictor_smoothing: float = 16.0
+    normal_region: str = "image"
     extra_views: int = 1
     sketch_size: int = 256
     render_size: int = 64
@@ -108,6 +114,8 @@ class TrainConfig:
             problems.append(f"mode must be one of {MODES}, got {self.mode!r}")
         if self.device not in DEVICES:
             problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.normal_region not in ("image", "target"):
+            problems.append(f"normal_region must be 'image' or 'target', got {self.normal_region!r}")
         if self.shading not in ("flat", "smooth"):
             problems.append(f"shading must be 'flat' or 'smooth', got {self.shading!r}")
         for name in ("iters", "batch", "base_channels", "predictor_channels", "predictor_hidden",
@@ -125,7 +133,7 @@ class TrainConfig:
             if not (v > 0 and v < float("inf")):
                 problems.append(f"{name} must be finite and > 0, got {v}")
         for name in ("lambda_n", "lambda_s", "lambda_e", "lambda_m", "lambda_g", "lambda_l", "lambda_adv",
-                     "joint_mesh_weight", "grad_clip", "augment_strength", "sobel_threshold", "debug_sleep"):
+                     "joint_mesh_weight", "predictor_smoothing", "grad_clip", "augment_strength", "sobel_threshold", "debug_sleep"):
             v = float(getattr(self, name))
             if not (v >= 0 and v < float("inf")):
                 problems.append(f"{name} must be finite and >= 0, got {v}")

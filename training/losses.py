@@ -60,6 +60,9 @@ DIHEDRAL_EPS = 1e-8
 degenerate face (opposite vertex on the shared edge line) gives cos = 0 instead of NaN, and the
 gradient there is bounded by ~1 / sqrt(DIHEDRAL_EPS) = 1e4 (relative to the mesh scale)."""
 
+NORMAL_REGIONS = ("image", "target")
+"""Where the normal term is computed: the whole image (the paper) or inside the target silhouette."""
+
 SCALE_MIN = 1e-30
 """Per-sample mesh scales below this (every vertex coincident) are replaced by 1."""
 
@@ -102,7 +105,8 @@ def safe_norm(x: torch.Tensor, dim: int = -1) -> torch.Tensor:
 # --------------------------------------------------------------------------- Eq. 2
 
 
-def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum") -> torch.Tensor:
+def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum",
+                mask: torch.Tensor | None = None) -> torch.Tensor:
     """Eq. 2: L1 distance between normal images, per sample, averaged over the batch.
 
     Args:
@@ -110,6 +114,7 @@ def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum"
         target: (B, 3, H, W) ground-truth normal image, same encoding.
         reduction: ``"sum"`` (default, the paper's L1 norm: sum over C, H, W) or ``"mean"``
             (mean over C, H, W). See the module docstring for why the sum is the default.
+        mask: optional (B, H, W) weights (e.g. the target silhouette); pixels where it is 0 count 0.
 
     Returns:
         () scalar tensor, ``mean_b reduce_chw |pred - target|``.
@@ -117,7 +122,12 @@ def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum"
     _check_image_pair(pred, target, 4, "normal_loss", "(B, 3, H, W)")
     if pred.shape[1] != 3:
         raise ValueError(f"normal_loss expects 3 channels (B, 3, H, W), got {tuple(pred.shape)}")
-    diff = (pred - target).abs().flatten(1)
+    diff = (pred - target).abs()
+    if mask is not None:
+        if mask.shape != (pred.shape[0], *pred.shape[2:]):
+            raise ValueError(f"normal_loss mask must be (B, H, W) = {(pred.shape[0], *pred.shape[2:])}, got {tuple(mask.shape)}")
+        diff = diff * mask[:, None].to(diff.dtype)
+    diff = diff.flatten(1)
     if reduction == "sum":
         per_sample = diff.sum(1)
     elif reduction == "mean":
@@ -362,11 +372,23 @@ class MeshLoss(nn.Module):
         weights: the lambdas (default: the paper's).
         normal_reference_pixels: the normal L1 sum is multiplied by
             ``normal_reference_pixels / (H * W)``; ``None`` keeps the plain sum.
+        normal_region: ``"image"`` (the paper's Eq. 2 over the whole image) or ``"target"`` (only
+            pixels inside the ground-truth silhouette). With background 0, a pixel the prediction
+            covers outside the target costs about 1.5 (the encoded normal's channel sum), as much
+            as a target pixel left uncovered, while a covered target pixel with a wrong normal
+            costs up to 3: at the paper's weights this whole-image sum pulls 10x harder than the
+            IoU term, and from the template sphere its steepest descent is to shrink the render
+            towards empty. Inside the target only, uncovered pixels still cost and wrong normals
+            still cost, but nothing rewards rendering less; over-coverage is left to the IoU term.
     """
 
     def __init__(self, template: Mesh, weights: LossWeights | None = None,
-                 normal_reference_pixels: int | None = NORMAL_REFERENCE_PIXELS) -> None:
+                 normal_reference_pixels: int | None = NORMAL_REFERENCE_PIXELS,
+                 normal_region: str = "image") -> None:
         super().__init__()
+        if normal_region not in NORMAL_REGIONS:
+            raise ValueError(f"normal_region must be one of {NORMAL_REGIONS}, got {normal_region!r}")
+        self.normal_region = normal_region
         if not isinstance(template, Mesh):
             raise TypeError(f"MeshLoss template must be an engine.mesh.Mesh, got {type(template).__name__}")
         self.weights = weights if weights is not None else LossWeights()
@@ -404,7 +426,12 @@ class MeshLoss(nn.Module):
         if (pred_normals is None) != (target_normals is None):
             raise ValueError("MeshLoss needs both pred_normals and target_normals, or neither")
         if pred_normals is not None:
-            ln = normal_loss(pred_normals, target_normals, reduction="sum")
+            mask = None
+            if self.normal_region == "target":
+                if target_silhouette is None:
+                    raise ValueError("MeshLoss normal_region='target' needs the target silhouette")
+                mask = target_silhouette > 0.5
+            ln = normal_loss(pred_normals, target_normals, reduction="sum", mask=mask)
             if self.normal_reference_pixels is not None:
                 ln = ln * (float(self.normal_reference_pixels) / (pred_normals.shape[-1] * pred_normals.shape[-2]))
             terms["normal"] = ln

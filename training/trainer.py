@@ -73,7 +73,7 @@ from training.networks import (
 )
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_channels", "predictor_hidden", "predictor_latent",
-                      "template_level", "sketch_size")
+                      "template_level", "predictor_smoothing", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes)."""
 
 VAL_ITEMS = 4
@@ -148,7 +148,8 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
         models["discriminator"] = PatchDiscriminator(cfg.base_channels)
     if cfg.uses_predictor:
         models["predictor"] = MeshPredictor(
-            cfg.template_level, cfg.predictor_channels, cfg.predictor_hidden, cfg.predictor_latent, cfg.render_size
+            cfg.template_level, cfg.predictor_channels, cfg.predictor_hidden, cfg.predictor_latent, cfg.render_size,
+            smoothing=cfg.predictor_smoothing,
         )
     return models
 
@@ -339,7 +340,8 @@ class Trainer:
             from training.losses import LossWeights, MeshLoss
 
             template = icosphere(cfg.template_level, TEMPLATE_RADIUS)
-            self.mesh_loss = MeshLoss(template, LossWeights(cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m)).to(self.device)
+            self.mesh_loss = MeshLoss(template, LossWeights(cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m),
+                                      normal_region=cfg.normal_region).to(self.device)
             self.faces = torch.from_numpy(np.array(template.faces)).to(self.device)
 
         self.iteration = 0
