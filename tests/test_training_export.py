@@ -189,3 +189,29 @@ def test_bench_tradeoff_bad_variant_is_a_clear_error(run_dir, tmp_path, capsys):
                "--out", str(tmp_path)])
     assert rc != 0
     assert "LABEL=DIR" in capsys.readouterr().err
+
+
+def test_gallery_writes_one_row_per_category(run_dir, exported, tmp_path, capsys):
+    from PIL import Image
+
+    from sketchmesh.cli import main
+
+    out = tmp_path / "gallery.png"
+    rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(out),
+               "--view", "0", "--turn", "1", "--size", "48", "--threads", "1"])
+    assert rc == 0, capsys.readouterr().err
+    w, h = Image.open(out).size
+    assert w == 1000 and h == 200 * 2  # 5 columns x 2 test categories of 2 inches at 100 dpi
+    rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(out),
+               "--categories", "nosuch"])
+    assert rc != 0 and "no test shapes" in capsys.readouterr().err
+
+
+def test_shade_is_lambert_with_a_white_background():
+    from engine.camera import encode_normals
+    from training.gallery import LIGHT, shade
+
+    n = np.stack([LIGHT, -LIGHT, np.array([0.0, 0.0, 1.0])])[None]  # (1, 3, 3)
+    img = shade(encode_normals(n), np.array([[1, 1, 1]]))
+    np.testing.assert_allclose(img[0], [1.0, 0.25, 0.25 + 0.75 * LIGHT[2]], atol=1e-6)
+    assert shade(encode_normals(n), np.array([[0, 0, 0]])).tolist() == [[1.0, 1.0, 1.0]]

@@ -6,6 +6,7 @@ command functions, through :func:`training._torch.require_torch`.
 
 from __future__ import annotations
 
+import argparse
 import math
 
 from engine.cliutil import float_in, int_in, one_line_errors, positive_int
@@ -39,6 +40,15 @@ def _cmd_bench_tradeoff(args) -> int:
     from training.tradeoff import main_tradeoff
 
     return main_tradeoff(args)
+
+
+def _cmd_gallery(args) -> int:
+    from training._torch import require_torch
+
+    require_torch()
+    from training.gallery import main_gallery
+
+    return main_gallery(args)
 
 
 def register(commands, bench) -> None:
@@ -94,3 +104,21 @@ def register(commands, bench) -> None:
     t.add_argument("--out", required=True, metavar="DIR", help="folder for tradeoff.md/.json/.png")
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=_cmd_bench_tradeoff)
+
+    if commands is None:
+        return
+    g = one_line_errors(commands.add_parser(
+        "gallery",
+        help="picture of sketch, generated normals and predicted mesh (two views) for test shapes",
+    ))
+    g.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split is used)")
+    g.add_argument("-o", "--output", required=True, metavar="PNG")
+    g.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,
+                   help="ONNX model folder (default: the bundled models)")
+    g.add_argument("--per-category", type=positive_int, default=1, help="rows per category (default 1)")
+    g.add_argument("--categories", nargs="+", metavar="NAME", help="only these categories")
+    g.add_argument("--view", type=int_in(0, 10**6), default=3, help="view index of the sketch (default 3)")
+    g.add_argument("--turn", type=int_in(1, 10**6), default=6, help="second view: this many views further (default 6 = 90 deg)")
+    g.add_argument("--size", type=int_in(32, 1024), default=160, help="render size of the mesh columns")
+    g.add_argument("--threads", type=positive_int, default=2)
+    g.set_defaults(func=_cmd_gallery)
