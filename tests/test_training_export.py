@@ -114,6 +114,21 @@ def test_int8_export_quantizes_the_predictor_only(run_dir, tmp_path, exported):
     assert all(r.max_abs_error <= r.tolerance for r in reports)
 
 
+def test_int8_all_export_quantizes_both_networks(run_dir, tmp_path, exported):
+    from engine.pipeline import SketchEngine
+
+    reports = export_run(run_dir, tmp_path, quantize="int8-all")
+    assert {r.role: r.quantization for r in reports} == {C.ROLE_GENERATOR: "int8-dynamic", C.ROLE_PREDICTOR: "int8-dynamic"}
+    assert _meta(tmp_path / C.GENERATOR_FILE)[C.META_QUANTIZATION] == "int8-dynamic"
+    # the encoder's Conv weights become int8; the decoder's ConvTranspose weights stay float32
+    assert (tmp_path / C.GENERATOR_FILE).stat().st_size < 0.8 * (exported / C.GENERATOR_FILE).stat().st_size
+    assert all(r.max_abs_error <= r.tolerance for r in reports)
+    sketch = np.zeros((256, 256), np.float32)
+    sketch[60:200, 128] = 1.0
+    pred = SketchEngine(tmp_path, threads=1).predict(sketch)  # the engine runs the quantised pair
+    assert np.isfinite(pred.mesh.vertices).all()
+
+
 def test_failed_parity_writes_nothing(run_dir, tmp_path, monkeypatch):
     import training.export_onnx as ex
 

@@ -15,8 +15,10 @@ export reports success only after ONNX Runtime reproduces torch on real inputs w
 
 ``--quantize int8`` applies dynamic int8 quantisation to the mesh predictor only: it is made of
 fully connected layers, where it halves latency and quarters the size; it does not pay for the
-U-Net (ConvTranspose layers stay float, QInt8 convolutions are slower on CPU;
-/work/shared/MEASUREMENTS.md), so the generator stays float32.
+U-Net in speed (ConvTranspose layers stay float, QInt8 convolutions are slower on CPU;
+/work/shared/MEASUREMENTS.md). ``--quantize int8-all`` also quantises the generator's Conv
+weights (ONNX Runtime's dynamic quantisation leaves ConvTranspose, the decoder, in float32): no
+faster, but smaller, which is what lets a width-32 generator fit a git repository (``sketchmesh bench tradeoff`` measures what it costs in accuracy).
 """
 
 from __future__ import annotations
@@ -45,6 +47,11 @@ PARITY_TOLERANCE = 1e-4
 INT8_TOLERANCE = 5e-2
 """Max |torch - ONNX Runtime| for the int8-quantised predictor's offsets (normalised-cube units:
 5 % of the shape size); the error is reported, quantisation is opt-in."""
+GENERATOR_INT8_TOLERANCE = 0.5
+"""Max |torch - ONNX Runtime| per pixel for an int8-quantised generator (normal images in [0, 1]):
+a sanity bound only, single pixels near edges move most; the mean error and its effect on the
+mesh are what ``sketchmesh bench tradeoff`` reports."""
+QUANTIZE_CHOICES = ("none", "int8", "int8-all")
 PARITY_SAMPLES = 2
 
 
@@ -199,13 +206,13 @@ def export_models(
             ({"generator": ..., "predictor": ...}) when the two come from different runs.
         code_version: metadata ``code_version`` (or one per role).
         sketches: (N, 1, 256, 256) parity inputs. normals64: (N, 3, 64, 64) parity inputs.
-        quantize: "none" or "int8" (mesh predictor only).
+        quantize: "none", "int8" (mesh predictor only) or "int8-all" (both networks).
 
     Returns:
         One :class:`ExportReport` per file written.
     """
-    if quantize not in ("none", "int8"):
-        raise ValueError(f"quantize must be 'none' or 'int8', got {quantize!r}")
+    if quantize not in QUANTIZE_CHOICES:
+        raise ValueError(f"quantize must be one of {', '.join(QUANTIZE_CHOICES)}, got {quantize!r}")
     if sketches.ndim != 4 or tuple(sketches.shape[1:]) != (1, contract.SKETCH_SIZE, contract.SKETCH_SIZE):
         raise ValueError(f"sketches must be (N, 1, 256, 256), got {tuple(sketches.shape)}")
     size = contract.PREDICTOR_INPUT_SIZE
@@ -225,16 +232,20 @@ def export_models(
         t0 = time.perf_counter()
         g = generator.float().cpu().eval()
         data = _to_onnx_bytes(g, sketches[:1].float(), contract.GENERATOR_INPUT, [contract.GENERATOR_OUTPUT])
+        gq, gtol = "none", PARITY_TOLERANCE
+        if quantize == "int8-all":
+            data = _quantize_int8(data)
+            gq, gtol = "int8-dynamic", GENERATOR_INT8_TOLERANCE
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
-                            contract.META_QUANTIZATION: "none"}
+                            contract.META_QUANTIZATION: gq}
         data = _with_metadata(data, meta)
         with torch.no_grad():
             ref = [g(sketches.float()).numpy()]
         got = _session(data).run([contract.GENERATOR_OUTPUT], {contract.GENERATOR_INPUT: sketches.float().numpy()})
         err = _max_err(ref, got)
         pending.append((out / contract.GENERATOR_FILE, data, ExportReport(
-            out / contract.GENERATOR_FILE, contract.ROLE_GENERATOR, len(data), err, PARITY_TOLERANCE, "none",
+            out / contract.GENERATOR_FILE, contract.ROLE_GENERATOR, len(data), err, gtol, gq,
             time.perf_counter() - t0)))
     if predictor is not None:
         t0 = time.perf_counter()
@@ -243,7 +254,7 @@ def export_models(
         data = _to_onnx_bytes(_PredictorExport(p), normals64[:1].float(), contract.PREDICTOR_INPUT, names)
         qname = "none"
         tol = PARITY_TOLERANCE
-        if quantize == "int8":
+        if quantize in ("int8", "int8-all"):
             data = _quantize_int8(data)
             qname, tol = "int8-dynamic", INT8_TOLERANCE
         meta = base_meta("predictor") | {contract.META_ROLE: contract.ROLE_PREDICTOR,
@@ -285,8 +296,8 @@ def export_run(
     """
     from training.trainer import load_run
 
-    if quantize not in ("none", "int8"):
-        raise ValueError(f"quantize must be 'none' or 'int8', got {quantize!r}")
+    if quantize not in QUANTIZE_CHOICES:
+        raise ValueError(f"quantize must be one of {', '.join(QUANTIZE_CHOICES)}, got {quantize!r}")
     loaded = {}
     for role, run in (("generator", generator_run or run_dir), ("predictor", predictor_run or run_dir)):
         cfg, models, state = load_run(run)
