@@ -300,3 +300,21 @@ def test_mesh_stats_on_closed_and_open_meshes():
     assert not mesh_stats(open_mesh)["watertight"] and mesh_stats(open_mesh)["volume"] is None
     flipped = Mesh(m.vertices, np.concatenate([m.faces[:1, ::-1], m.faces[1:]]))
     assert not mesh_stats(flipped)["winding_consistent"]
+
+
+def test_atomic_writes_get_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    from engine.fileio import atomic_write_bytes
+
+    old = os.umask(0o022)
+    os.umask(old)
+    new = tmp_path / "new.bin"
+    atomic_write_bytes(new, b"x")
+    assert stat.S_IMODE(new.stat().st_mode) == 0o666 & ~old  # as open() would, not mkstemp's 0o600
+    kept = tmp_path / "kept.bin"
+    kept.write_bytes(b"old")
+    kept.chmod(0o640)
+    atomic_write_bytes(kept, b"new")
+    assert stat.S_IMODE(kept.stat().st_mode) == 0o640 and kept.read_bytes() == b"new"

@@ -1,0 +1,79 @@
+"""The models bundled in assets/models: contract, size budget, and that they are trained.
+
+These run the real ONNX files the app starts with, on the bundled sample sketches.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from assets import MODELS_DIR, SAMPLES_DIR
+from engine import contract as C
+from engine.models import model_paths
+from engine.pipeline import SketchEngine
+
+SIZE_BUDGET_MB = 40.0
+"""The bundled ONNX files together stay below this (they live in the git repository)."""
+
+
+@pytest.fixture(scope="module")
+def engine() -> SketchEngine:
+    e = SketchEngine(threads=2)
+    e.load()
+    return e
+
+
+def _samples() -> list[Path]:
+    return sorted(p for p in SAMPLES_DIR.glob("*.png"))
+
+
+def test_bundled_models_exist_within_the_size_budget():
+    gen, pred = model_paths(MODELS_DIR)
+    total_mb = (gen.stat().st_size + pred.stat().st_size) / 2**20
+    assert total_mb <= SIZE_BUDGET_MB, f"bundled models take {total_mb:.1f} MB"
+    card = (MODELS_DIR / "README.md").read_text()
+    for name in (C.GENERATOR_FILE, C.PREDICTOR_FILE):
+        assert name in card  # the model card describes the files it ships with
+
+
+def test_bundled_models_follow_the_contract(engine):
+    info = engine.model_info()
+    assert info["template_level"] == 3 and info["template_radius"] == pytest.approx(0.5)
+    for role in ("generator", "predictor"):
+        assert info[role]["metadata"][C.META_CONVENTIONS] == C.CONVENTIONS_ID
+
+
+def test_generated_normals_cover_the_drawn_shape(engine):
+    """A trained generator paints the inside of the drawn outline and leaves the rest background.
+
+    Independent expectation: the region enclosed by the sketch's ink (holes filled) against the
+    pixels the normal image marks as foreground. Random weights give an IoU near 0.
+    """
+    samples = [p for p in _samples() if not p.name.startswith("drawn_")]
+    assert len(samples) >= 10
+    ious = []
+    for path in samples:
+        pred = engine.predict(path, want_normals=True)
+        ink = ndimage.binary_dilation(pred.sketch > 0.5, iterations=2)
+        inside = ndimage.binary_fill_holes(ink)
+        fg = pred.normals.sum(axis=-1) > 0.6
+        ious.append((inside & fg).sum() / max((inside | fg).sum(), 1))
+    assert np.median(ious) > 0.5, [round(float(i), 2) for i in ious]
+
+
+def test_every_sample_sketch_gives_a_sane_mesh(engine):
+    extents = []
+    for path in _samples():
+        mesh = engine.predict(path).mesh
+        v = np.asarray(mesh.vertices)
+        assert mesh.num_vertices == 642 and np.isfinite(v).all(), path.name
+        extent = v.max(axis=0) - v.min(axis=0)
+        assert 0.05 < extent.max() < 2.0, (path.name, extent)
+        extents.append(extent)
+    # the meshes depend on the sketch: thin and wide drawings do not give the same proportions
+    ratios = [e[0] / e[1] for e in extents]
+    assert max(ratios) / min(ratios) > 1.3

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# Rebuild the bundled models and every figure of assets/models/README.md, step by step.
+#
+#   bash training/reproduce_models.sh STEP...      (steps run in the order given)
+#
+# Steps: data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery
+#   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
+#   that was stopped (or a session that ended) continues where it was.
+#
+# Environment (defaults in brackets):
+#   DATA [data/proc30]    dataset folder         RUNS [runs]         training runs
+#   OUT  [out/release]    exported variants, eval tables and plots
+#   THREADS [1]           torch threads per training process (two trainings side by side on 2 cores)
+#   GEN_ITERS [2000] MESH_ITERS [4000] JOINT_ITERS [500]   iterations (the bundled models' values)
+#   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
+set -euo pipefail
+
+DATA=${DATA:-data/proc30}
+RUNS=${RUNS:-runs}
+OUT=${OUT:-out/release}
+THREADS=${THREADS:-1}
+GEN_ITERS=${GEN_ITERS:-2000}
+MESH_ITERS=${MESH_ITERS:-4000}
+JOINT_ITERS=${JOINT_ITERS:-500}
+SAMPLES=${SAMPLES:-312}
+PREDICTOR=(--predictor-channels 32 --predictor-hidden 512 --predictor-latent 256)
+
+step() {
+  case "$1" in
+    data)
+      sketchmesh data --source procedural --shapes-per-category 30 --workers 2 --out "$DATA" ;;
+    normals)
+      sketchmesh train normals --data "$DATA" --out "$RUNS/normals32" --base-channels 32 --batch 4 \
+        --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
+    normals16)  # a narrower generator, for the width axis of the error-against-run-time table
+      sketchmesh train normals --data "$DATA" --out "$RUNS/normals16" --base-channels 16 --batch 4 \
+        --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
+    mesh)
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_full" --batch 8 "${PREDICTOR[@]}" \
+        --normal-region target --iters "$MESH_ITERS" --threads "$THREADS" --ckpt-every 250 --val-every 1000 ;;
+    silhouette)  # the Table-1 baseline: the same run with the normal-loss weight 0
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_silhouette" --batch 8 "${PREDICTOR[@]}" \
+        --normal-region target --lambda-n 0 --iters "$MESH_ITERS" --threads "$THREADS" --ckpt-every 250 --val-every 1000 ;;
+    joint)
+      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 32 --batch 4 "${PREDICTOR[@]}" \
+        --normal-region target --init-normals "$RUNS/normals32" --init-mesh "$RUNS/mesh_full" \
+        --iters "$JOINT_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
+    export)  # the bundled pair (joint fine-tune, both networks int8) and the before-fine-tune variants
+      sketchmesh export "$RUNS/joint" -o "$OUT/models_fp32"
+      sketchmesh export "$RUNS/joint" -o "$OUT/models_int8" --quantize int8-all
+      sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals32" -o "$OUT/models_w32_pretrained"
+      sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals16" -o "$OUT/models_w16_pretrained"
+      mkdir -p assets/models
+      cp "$OUT/models_int8/"*.onnx assets/models/ ;;
+    eval)
+      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals32" \
+        --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" \
+        --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_clean" ;;
+    eval-strong)  # the same sketches with strong hand-drawn augmentation (broken lines, jitter)
+      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals32" \
+        --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" --augment-strength 1.0 \
+        --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_strong" ;;
+    tradeoff)
+      sketchmesh bench tradeoff --data "$DATA" --variant "w32-joint=$OUT/models_fp32" \
+        --variant "w32=$OUT/models_w32_pretrained" --variant "w16=$OUT/models_w16_pretrained" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w32-joint:int8 \
+        --max-samples "$SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
+    gallery)
+      sketchmesh gallery --data "$DATA" --models assets/models -o "$OUT/gallery.png" ;;
+    all)
+      for s in data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery; do step "$s"; done ;;
+    *)
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery all)" >&2
+      exit 2 ;;
+  esac
+}
+
+if [ $# -eq 0 ]; then
+  sed -n '2,16p' "$0"
+  exit 2
+fi
+for s in "$@"; do step "$s"; done
