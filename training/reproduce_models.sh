@@ -3,7 +3,8 @@
 #
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
-# Steps: data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery
+# Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff
+#   gallery
 #   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -29,10 +30,10 @@ step() {
   case "$1" in
     data)
       sketchmesh data --source procedural --shapes-per-category 30 --workers 2 --out "$DATA" ;;
-    normals)
+    normals)  # width 32: compared in the error-against-run-time table (too large to bundle, see the card)
       sketchmesh train normals --data "$DATA" --out "$RUNS/normals32" --base-channels 32 --batch 4 \
         --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
-    normals16)  # a narrower generator, for the width axis of the error-against-run-time table
+    normals16)  # width 16: the bundled generator
       sketchmesh train normals --data "$DATA" --out "$RUNS/normals16" --base-channels 16 --batch 4 \
         --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
     mesh)
@@ -41,42 +42,46 @@ step() {
     silhouette)  # the Table-1 baseline: the same run with the normal-loss weight 0
       sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_silhouette" --batch 8 "${PREDICTOR[@]}" \
         --normal-region target --lambda-n 0 --iters "$MESH_ITERS" --threads "$THREADS" --ckpt-every 250 --val-every 1000 ;;
+    paper-normal)  # the paper's Eq. 2 over the whole image, for the model card's finding (short run)
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
+        --normal-region image --iters 250 --threads "$THREADS" --log-every 50 --ckpt-every 250 --val-every 250 ;;
     joint)
-      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 32 --batch 4 "${PREDICTOR[@]}" \
-        --normal-region target --init-normals "$RUNS/normals32" --init-mesh "$RUNS/mesh_full" \
+      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${PREDICTOR[@]}" \
+        --normal-region target --init-normals "$RUNS/normals16" --init-mesh "$RUNS/mesh_full" \
         --iters "$JOINT_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
-    export)  # the bundled pair (joint fine-tune, both networks int8) and the before-fine-tune variants
+    export)  # the bundled pair (joint fine-tune; width-16 generator float32, predictor int8) and the
+             # variants before the fine-tune, for the width comparison
       sketchmesh export "$RUNS/joint" -o "$OUT/models_fp32"
-      sketchmesh export "$RUNS/joint" -o "$OUT/models_int8" --quantize int8-all
+      sketchmesh export "$RUNS/joint" -o "$OUT/models_int8" --quantize int8
       sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals32" -o "$OUT/models_w32_pretrained"
       sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals16" -o "$OUT/models_w16_pretrained"
       mkdir -p assets/models
       cp "$OUT/models_int8/"*.onnx assets/models/ ;;
     eval)
-      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals32" \
+      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_clean" ;;
     eval-strong)  # the same sketches with strong hand-drawn augmentation (broken lines, jitter)
-      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals32" \
+      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" --augment-strength 1.0 \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_strong" ;;
     tradeoff)
-      sketchmesh bench tradeoff --data "$DATA" --variant "w32-joint=$OUT/models_fp32" \
+      sketchmesh bench tradeoff --data "$DATA" --variant "w16-joint=$OUT/models_fp32" \
         --variant "w32=$OUT/models_w32_pretrained" --variant "w16=$OUT/models_w16_pretrained" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w32-joint:int8 \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-joint:int8-predictor \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
     gallery)
       sketchmesh gallery --data "$DATA" --models assets/models -o "$OUT/gallery.png" ;;
     all)
-      for s in data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery; do step "$s"; done ;;
+      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette joint export eval eval-strong tradeoff gallery all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff gallery all)" >&2
       exit 2 ;;
   esac
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,16p' "$0"
+  sed -n '2,17p' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
