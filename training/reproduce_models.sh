@@ -81,7 +81,7 @@ step() {
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,17p' "$0"
+  sed -n '2,16p' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
