@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit`` and ``bench tradeoff``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench tradeoff`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -15,44 +15,29 @@ _resolution = int_in(1, 2048)
 _non_negative_float = float_in(0.0, math.inf)
 
 
-def _cmd_bench_renderer(args) -> int:
-    from training._torch import require_torch
+def _lazy(module: str, function: str):
+    """A command function that checks for torch, then imports ``module`` and calls ``function(args)``."""
 
-    require_torch()
-    from training.bench_renderer import main_bench_renderer
+    def command(args) -> int:
+        import importlib
 
-    return main_bench_renderer(args)
+        from training._torch import require_torch
 
+        require_torch()
+        return getattr(importlib.import_module(module), function)(args)
 
-def _cmd_bench_fit(args) -> int:
-    from training._torch import require_torch
-
-    require_torch()
-    from training.fit import main_fit
-
-    return main_fit(args)
+    command.__name__ = f"_cmd_{function}"
+    return command
 
 
-def _cmd_bench_tradeoff(args) -> int:
-    from training._torch import require_torch
-
-    require_torch()
-    from training.tradeoff import main_tradeoff
-
-    return main_tradeoff(args)
-
-
-def _cmd_gallery(args) -> int:
-    from training._torch import require_torch
-
-    require_torch()
-    from training.gallery import main_gallery
-
-    return main_gallery(args)
+_cmd_bench_renderer = _lazy("training.bench_renderer", "main_bench_renderer")
+_cmd_bench_fit = _lazy("training.fit", "main_fit")
+_cmd_bench_tradeoff = _lazy("training.tradeoff", "main_tradeoff")
+_cmd_gallery = _lazy("training.gallery", "main_gallery")
 
 
 def register(commands, bench) -> None:
-    """Add ``bench renderer``, ``bench fit`` and ``bench tradeoff`` to the ``bench`` sub-parsers (``commands`` unused)."""
+    """Add ``bench renderer``, ``bench fit`` and ``bench tradeoff`` to ``bench``, and ``gallery`` to ``commands``."""
     p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
