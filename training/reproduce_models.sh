@@ -3,8 +3,8 @@
 #
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
-# Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff
-#   gallery
+# Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
+#   eval-gt tradeoff gallery
 #   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -12,8 +12,10 @@
 #   DATA [data/proc30]    dataset folder         RUNS [runs]         training runs
 #   OUT  [out/release]    exported variants, eval tables and plots
 #   THREADS [1]           torch threads per training process (two trainings side by side on 2 cores)
-#   GEN_ITERS [2000] MESH_ITERS [4000] JOINT_ITERS [500]   iterations (the bundled models' values)
+#   GEN_ITERS [2000] MESH_ITERS [4000] JOINT_ITERS [500]   iterations (the bundled models' values;
+#                         both generator widths train GEN_ITERS)
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
+#   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
 set -euo pipefail
 
 DATA=${DATA:-data/proc30}
@@ -24,6 +26,7 @@ GEN_ITERS=${GEN_ITERS:-2000}
 MESH_ITERS=${MESH_ITERS:-4000}
 JOINT_ITERS=${JOINT_ITERS:-500}
 SAMPLES=${SAMPLES:-312}
+TRADEOFF_SAMPLES=${TRADEOFF_SAMPLES:-156}
 PREDICTOR=(--predictor-channels 32 --predictor-hidden 512 --predictor-latent 256)
 
 step() {
@@ -65,23 +68,26 @@ step() {
       sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" --augment-strength 1.0 \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_strong" ;;
+    eval-gt)  # the predictors on ground-truth normal images: the mesh step alone, without the generator
+      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --gt-normals --baseline-run "$RUNS/mesh_silhouette" \
+        --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_gt_normals" ;;
     tradeoff)
       sketchmesh bench tradeoff --data "$DATA" --variant "w16-joint=$OUT/models_fp32" \
         --variant "w32=$OUT/models_w32_pretrained" --variant "w16=$OUT/models_w16_pretrained" \
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-joint:int8-predictor \
-        --max-samples "$SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
     gallery)
       sketchmesh gallery --data "$DATA" --models assets/models -o "$OUT/gallery.png" ;;
     all)
-      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff gallery; do step "$s"; done ;;
+      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong tradeoff gallery all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery all)" >&2
       exit 2 ;;
   esac
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,16p' "$0"
+  sed -n '2,18p' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
