@@ -4,7 +4,7 @@
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
 # Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
-#   eval-gt tradeoff gallery
+#   eval-gt tradeoff gallery docs
 #   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -78,10 +78,17 @@ step() {
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
     gallery)
       sketchmesh gallery --data "$DATA" --models assets/models -o "$OUT/gallery.png" ;;
+    docs)  # the README's pictures, from the outputs above and the app itself (Xvfb when headless)
+      mkdir -p docs
+      cp "$OUT/gallery.png" docs/gallery.png
+      cp "$OUT/tradeoff/tradeoff.png" docs/tradeoff.png
+      cp "$OUT/eval_clean/eval_test.png" docs/eval_test.png
+      local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
+      if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     all)
-      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
+      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs all)" >&2
       exit 2 ;;
   esac
 }
