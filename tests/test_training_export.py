@@ -230,3 +230,18 @@ def test_shade_is_lambert_with_a_white_background():
     img = shade(encode_normals(n), np.array([[1, 1, 1]]))
     np.testing.assert_allclose(img[0], [1.0, 0.25, 0.25 + 0.75 * LIGHT[2]], atol=1e-6)
     assert shade(encode_normals(n), np.array([[0, 0, 0]])).tolist() == [[1.0, 1.0, 1.0]]
+
+
+def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
+    from training.evaluate import METRICS, markdown_table
+
+    def method(iou, cd):
+        per = {"car": {"voxel_iou": iou, "chamfer_l1": cd}, "lamp": {"voxel_iou": iou / 2, "chamfer_l1": 2 * cd}}
+        return {"per_category": per, "mean": {m: 0.5 for m in METRICS}, "ms_per_sample": 3.0}
+
+    result = {"method_order": ["full", "retrieval"], "methods": {"full": method(0.25, 0.1), "retrieval": method(0.5, 0.05)},
+              "voxel_resolution": 32, "split": "test", "samples": 4, "gt_normals": False}
+    table = markdown_table(result)
+    assert "| car | 0.250 / 0.100 | 0.500 / 0.050 |" in table
+    assert "| lamp | 0.125 / 0.200 | 0.250 / 0.100 |" in table
+    assert "| full | 0.5000 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table

@@ -329,15 +329,18 @@ def evaluate(
 
 
 def markdown_table(result: dict) -> str:
-    """Voxel IoU per category (rows) and method (columns), then every metric's mean and the cost."""
+    """Voxel IoU / Chamfer-L1 per category (rows) and method (columns), then every metric's mean and the cost."""
     names = result["method_order"]
     cats = sorted({c for n in names for c in result["methods"][n]["per_category"]})
-    lines = [f"Voxel IoU ({result['voxel_resolution']}^3) on the {result['split']} split, "
+    lines = [f"Voxel IoU ({result['voxel_resolution']}^3) / Chamfer-L1 on the {result['split']} split, "
              f"{result['samples']} samples{' (ground-truth normals)' if result['gt_normals'] else ''}", "",
              "| category | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
     for c in cats:
-        row = [result["methods"][n]["per_category"].get(c, {}).get("voxel_iou", float("nan")) for n in names]
-        lines.append(f"| {c} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+        cells = []
+        for n in names:
+            per = result["methods"][n]["per_category"].get(c, {})
+            cells.append(f"{per.get('voxel_iou', float('nan')):.3f} / {per.get('chamfer_l1', float('nan')):.3f}")
+        lines.append(f"| {c} | " + " | ".join(cells) + " |")
     lines += ["", "| method | " + " | ".join(METRICS) + " | ms / sample |", "|---|" + "---:|" * (len(METRICS) + 1)]
     for n in names:
         mean = result["methods"][n]["mean"]
