@@ -156,6 +156,32 @@ def test_predictor_smoothing_keeps_offsets_bounded_and_rejects_bad_values():
             MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=bad)
 
 
+def test_predictor_clamp_bound_is_linear_inside_and_bounded_outside():
+    tanh = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=0.0)
+    clamp = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=0.0, local_bound="clamp")
+    clamp.load_state_dict(tanh.state_dict())
+    x = torch.rand(2, 3, 64, 64)
+    tanh.eval()
+    clamp.eval()
+    with torch.no_grad():
+        raw = tanh.local_head(tanh.decoder(tanh.encoder(x)) * tanh.head_gain).view(2, -1, 3)
+        torch.testing.assert_close(clamp(x)[0], clamp.local_scale * raw)  # identity inside the bound
+        for m in (tanh, clamp):
+            m.local_head.bias.fill_(1e6)
+        local_t, local_c = tanh(x)[0], clamp(x)[0]
+    assert torch.allclose(local_t, torch.full_like(local_t, tanh.local_scale))
+    assert torch.allclose(local_c, torch.full_like(local_c, 2.0 * clamp.local_scale))
+    # inside the bound the gradient is the identity's, where tanh's has vanished
+    clamp.train()
+    with torch.no_grad():
+        clamp.local_head.bias.fill_(1.5)
+    local, _ = clamp(x)
+    local.sum().backward()
+    assert clamp.local_head.bias.grad.abs().min() > 0
+    with pytest.raises(ValueError, match="local_bound"):
+        MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, local_bound="sigmoid")
+
+
 # ---------------------------------------------------------------------------- generator losses
 
 

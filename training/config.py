@@ -40,6 +40,8 @@ class TrainConfig:
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
         predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512).
         template_level: icosphere level (3 -> 642 vertices, the paper's).
+        predictor_local_bound: "tanh" or "clamp" bound of the predictor's local offsets (see
+            :class:`training.networks.MeshPredictor`).
         normal_region: "image" (Eq. 2 over the whole image, the paper's) or "target" (inside the
             ground-truth silhouette only; see :class:`training.losses.MeshLoss`).
         predictor_smoothing: lambda of the predictor's smooth offsets ``(I + lambda L)^-1`` (0: off;
@@ -86,6 +88,7 @@ class TrainConfig:
     predictor_latent: int = 512
     template_level: int = 3
     predictor_smoothing: float = 16.0
+    predictor_local_bound: str = "tanh"
     normal_region: str = "image"
     extra_views: int = 1
     sketch_size: int = 256
@@ -114,6 +117,8 @@ class TrainConfig:
             problems.append(f"mode must be one of {MODES}, got {self.mode!r}")
         if self.device not in DEVICES:
             problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
+        if self.predictor_local_bound not in ("tanh", "clamp"):
+            problems.append(f"predictor_local_bound must be 'tanh' or 'clamp', got {self.predictor_local_bound!r}")
         if self.normal_region not in ("image", "target"):
             problems.append(f"normal_region must be 'image' or 'target', got {self.normal_region!r}")
         if self.shading not in ("flat", "smooth"):

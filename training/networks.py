@@ -49,6 +49,10 @@ GENERATOR_LEVELS = 8
 LOCAL_OFFSET_SCALE = 0.6
 GLOBAL_OFFSET_SCALE = 0.2
 OUTPUT_INIT_STD = 1e-3
+LOCAL_BOUNDS = ("tanh", "clamp")
+"""How the local head's output is bounded: ``tanh`` (SoftRas) or ``clamp`` (identity within +-LOCAL_CLAMP)."""
+LOCAL_CLAMP = 2.0
+"""With ``local_bound="clamp"``, raw local outputs are clamped to this (offsets to 2 x local_scale)."""
 PREDICTOR_SMOOTHING = 16.0
 """Default ``lambda`` of the predictor's smooth offset parametrisation ``(I + lambda L)^-1``."""
 """Std of the offset heads' initial weights: the first prediction is close to the template."""
@@ -207,6 +211,11 @@ class MeshPredictor(nn.Module):
     tanh passes no gradient back). With the gain the step is ``sqrt(2 * hidden)`` times smaller
     (the usual output multiplier for wide layers under Adam); the offsets start near zero anyway.
 
+    Bound of the local offsets. ``local_bound="tanh"`` (SoftRas's choice, the default) saturates:
+    in the trained predictor most pre-tanh outputs ended far outside the linear range, where no
+    gradient passes. ``"clamp"`` keeps the head linear up to +-2 (offsets up to twice
+    ``local_scale``) and only stops at the bound; the offsets stay finite either way.
+
     Smooth offsets. With Adam, every output weight moves by about ``lr`` per step whatever its
     gradient, so vertices that get almost no signal (interior of the silhouette) take steps as large
     as the boundary vertices and the sphere crumples within tens of steps at the paper's lr 1e-4
@@ -235,8 +244,12 @@ class MeshPredictor(nn.Module):
         local_scale: float = LOCAL_OFFSET_SCALE,
         global_scale: float = GLOBAL_OFFSET_SCALE,
         smoothing: float = PREDICTOR_SMOOTHING,
+        local_bound: str = "tanh",
     ) -> None:
         super().__init__()
+        if local_bound not in LOCAL_BOUNDS:
+            raise ValueError(f"local_bound must be one of {LOCAL_BOUNDS}, got {local_bound!r}")
+        self.local_bound = local_bound
         if not (math.isfinite(smoothing) and smoothing >= 0):
             raise ValueError(f"smoothing must be finite and >= 0, got {smoothing}")
         template = icosphere(template_level, TEMPLATE_RADIUS)
@@ -271,7 +284,12 @@ class MeshPredictor(nn.Module):
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
         _check_image(normals, 3, self.input_size, "normals")
         h = self.decoder(self.encoder(normals)) * self.head_gain
-        local = self.local_scale * torch.tanh(self.local_head(h)).view(-1, self.num_vertices, 3)
+        raw = self.local_head(h)
+        if self.local_bound == "tanh":
+            raw = torch.tanh(raw)
+        else:  # "clamp": linear inside [-1, 1], so no gradient is lost until the bound is reached
+            raw = raw.clamp(-LOCAL_CLAMP, LOCAL_CLAMP)
+        local = self.local_scale * raw.view(-1, self.num_vertices, 3)
         if self.smoothing > 0:
             local = torch.matmul(self.offset_smoother.to(local.dtype), local)
         glob = self.global_scale * torch.tanh(self.global_head(h))

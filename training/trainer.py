@@ -73,7 +73,7 @@ from training.networks import (
 )
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_channels", "predictor_hidden", "predictor_latent",
-                      "template_level", "predictor_smoothing", "sketch_size")
+                      "template_level", "predictor_smoothing", "predictor_local_bound", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes)."""
 
 VAL_ITEMS = 4
@@ -149,7 +149,7 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
     if cfg.uses_predictor:
         models["predictor"] = MeshPredictor(
             cfg.template_level, cfg.predictor_channels, cfg.predictor_hidden, cfg.predictor_latent, cfg.render_size,
-            smoothing=cfg.predictor_smoothing,
+            smoothing=cfg.predictor_smoothing, local_bound=cfg.predictor_local_bound,
         )
     return models
 
