@@ -4,7 +4,7 @@
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
 # Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
-#   eval-gt tradeoff gallery docs
+#   eval-gt tradeoff gallery docs clamp-trial
 #   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -48,6 +48,10 @@ step() {
     paper-normal)  # the paper's Eq. 2 over the whole image, for the model card's finding (short run)
       sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
         --normal-region image --iters 250 --threads "$THREADS" --log-every 50 --ckpt-every 250 --val-every 250 ;;
+    clamp-trial)  # the next change to try: linear (clamped) local offsets instead of tanh (short run)
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 "${PREDICTOR[@]}" \
+        --normal-region target --predictor-local-bound clamp --iters 1000 --threads 2 --log-every 50 \
+        --ckpt-every 250 --val-every 500 ;;
     joint)
       sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${PREDICTOR[@]}" \
         --normal-region target --init-normals "$RUNS/normals16" --init-mesh "$RUNS/mesh_full" \
@@ -88,7 +92,7 @@ step() {
     all)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial all)" >&2
       exit 2 ;;
   esac
 }
