@@ -16,6 +16,7 @@
 #                         both generator widths train GEN_ITERS)
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
 #   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
+#   LOCAL_BOUND [tanh]    the predictor's offset bound (clamp: see the clamp-trial step)
 set -euo pipefail
 
 DATA=${DATA:-data/proc30}
@@ -27,7 +28,8 @@ MESH_ITERS=${MESH_ITERS:-4000}
 JOINT_ITERS=${JOINT_ITERS:-500}
 SAMPLES=${SAMPLES:-312}
 TRADEOFF_SAMPLES=${TRADEOFF_SAMPLES:-156}
-PREDICTOR=(--predictor-channels 32 --predictor-hidden 512 --predictor-latent 256)
+LOCAL_BOUND=${LOCAL_BOUND:-tanh}
+PREDICTOR=(--predictor-channels 32 --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound "$LOCAL_BOUND")
 
 step() {
   case "$1" in
@@ -49,8 +51,8 @@ step() {
       sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
         --normal-region image --iters 250 --threads "$THREADS" --log-every 50 --ckpt-every 250 --val-every 250 ;;
     clamp-trial)  # the next change to try: linear (clamped) local offsets instead of tanh (short run)
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 "${PREDICTOR[@]}" \
-        --normal-region target --predictor-local-bound clamp --iters 1000 --threads 2 --log-every 50 \
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 --predictor-channels 32 \
+        --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound clamp --normal-region target --iters 1000 --threads 2 --log-every 50 \
         --ckpt-every 250 --val-every 500 ;;
     joint)
       sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${PREDICTOR[@]}" \
@@ -98,7 +100,7 @@ step() {
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,18p' "$0"
+  sed -n '2,19p' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
