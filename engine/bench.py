@@ -29,7 +29,7 @@ from engine.errors import MissingExtraError, ModelError, SketchInputError
 from engine.models import model_paths, resolve_models_dir
 
 STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
-VARIANTS = ("fp32", "int8-predictor", "int8")
+VARIANTS = C.PRECISION_VARIANTS
 EXPORT_SUFFIX = ".glb"
 """Format timed by the ``export`` stage (the app's default export)."""
 

@@ -50,6 +50,9 @@ META_TEMPLATE_LEVEL = "template_level"
 META_TEMPLATE_RADIUS = "template_radius"
 META_BASE_CHANNELS = "base_channels"
 META_QUANTIZATION = "quantization"
+PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8")
+"""How a model folder can be run: as exported, with the predictor dynamically quantised to int8,
+or with both networks quantised (``sketchmesh bench engine`` / ``bench tradeoff``)."""
 
 REQUIRED_METADATA = (META_FORMAT, META_ROLE, META_CODE_VERSION, META_CONVENTIONS)
 

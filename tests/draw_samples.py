@@ -14,9 +14,7 @@ to the models; the rendered test-split sketches beside them show the training di
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -86,26 +84,21 @@ def main(argv: list[str]) -> int:
 
     app = QApplication.instance() or QApplication(["draw_samples"])
     rng = np.random.default_rng(7)
-    with tempfile.TemporaryDirectory() as tmp:
-        os.environ.setdefault("XDG_CONFIG_HOME", tmp)
-        for name, strokes in sample_strokes().items():
-            window = MainWindow(engine_factory=lambda folder: FakeEngine(folder), autosave=False,
-                                persist_settings=False)
-            window.resize(900, 700)
-            window.show()
+    for name, strokes in sample_strokes().items():
+        window = MainWindow(engine_factory=FakeEngine, autosave=False, persist_settings=False)
+        window.resize(900, 700)
+        window.show()
+        app.processEvents()
+        size = min(window.canvas.width(), window.canvas.height())
+        for s in strokes:
+            draw_stroke(window.canvas, handify(s, size, rng))
             app.processEvents()
-            size = min(window.canvas.width(), window.canvas.height())
-            for s in strokes:
-                draw_stroke(window.canvas, handify(s, size, rng))
-                app.processEvents()
-            window.save_to(out / f"{name}.sketch.json")
-            (out / f"{name}.sketch.json").unlink()  # keep the PNG: that is what File > Open reads
-            window.canvas.clear()
-            window._saved_state = window.canvas.state
-            window.close()
-            window.deleteLater()
-            app.processEvents()
-            print(f"wrote {out / (name + '.png')}")
+        window.save_to(out / f"{name}.sketch.json")  # also marks the sketch saved: closing asks nothing
+        (out / f"{name}.sketch.json").unlink()  # keep the PNG: that is what File > Open reads
+        window.close()
+        window.deleteLater()
+        app.processEvents()
+        print(f"wrote {out / (name + '.png')}")
     return 0
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from engine.contract import PRECISION_VARIANTS
 from engine.cliutil import float_in, int_in, one_line_errors, positive_int
 
 _resolution = int_in(1, 2048)
@@ -80,7 +81,7 @@ def register(commands, bench) -> None:
     t.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split is used)")
     t.add_argument("--variant", action="append", required=True, metavar="LABEL=DIR",
                    help="a folder of exported models and its label (repeat)")
-    t.add_argument("--precisions", nargs="+", default=["fp32"], choices=("fp32", "int8-predictor", "int8"))
+    t.add_argument("--precisions", nargs="+", default=["fp32"], choices=PRECISION_VARIANTS)
     t.add_argument("--levels", type=int_in(0, 6), nargs="+", default=None, metavar="L",
                    help="template levels to report (default: the predictor's own)")
     t.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="at most this many test sketches (0: all)")

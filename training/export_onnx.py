@@ -17,8 +17,9 @@ export reports success only after ONNX Runtime reproduces torch on real inputs w
 fully connected layers, where it halves latency and quarters the size; it does not pay for the
 U-Net in speed (ConvTranspose layers stay float, QInt8 convolutions are slower on CPU;
 /work/shared/MEASUREMENTS.md). ``--quantize int8-all`` also quantises the generator's Conv
-weights (ONNX Runtime's dynamic quantisation leaves ConvTranspose, the decoder, in float32): no
-faster, but smaller, which is what lets a width-32 generator fit a git repository (``sketchmesh bench tradeoff`` measures what it costs in accuracy).
+weights (ONNX Runtime's dynamic quantisation leaves ConvTranspose, the decoder, in float32): it
+is slower and only somewhat smaller (the width-32 generator: 54 -> 40 MB); ``sketchmesh bench
+tradeoff`` measures both against accuracy.
 """
 
 from __future__ import annotations

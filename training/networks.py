@@ -42,6 +42,7 @@ from torch import nn
 
 from engine.contract import PREDICTOR_INPUT_SIZE, SKETCH_SIZE
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
+from engine.mesh import unique_edges
 
 GENERATOR_LEVELS = 8
 """Down-sampling levels of the U-Net: 256 -> 1."""
@@ -49,13 +50,13 @@ GENERATOR_LEVELS = 8
 LOCAL_OFFSET_SCALE = 0.6
 GLOBAL_OFFSET_SCALE = 0.2
 OUTPUT_INIT_STD = 1e-3
+"""Std of the offset heads' initial weights: the first prediction is close to the template."""
 LOCAL_BOUNDS = ("tanh", "clamp")
 """How the local head's output is bounded: ``tanh`` (SoftRas) or ``clamp`` (identity within +-LOCAL_CLAMP)."""
 LOCAL_CLAMP = 2.0
 """With ``local_bound="clamp"``, raw local outputs are clamped to this (offsets to 2 x local_scale)."""
 PREDICTOR_SMOOTHING = 16.0
 """Default ``lambda`` of the predictor's smooth offset parametrisation ``(I + lambda L)^-1``."""
-"""Std of the offset heads' initial weights: the first prediction is close to the template."""
 
 SOBEL_EPS = 1e-12
 
@@ -187,12 +188,10 @@ def smoothing_operator(faces: np.ndarray, num_vertices: int, lam: float) -> np.n
     """
     if lam == 0:
         return np.eye(num_vertices, dtype=np.float32)
-    f = np.asarray(faces, dtype=np.int64)
-    i = np.concatenate([f[:, 0], f[:, 1], f[:, 2]])
-    j = np.concatenate([f[:, 1], f[:, 2], f[:, 0]])
+    edges = unique_edges(np.asarray(faces))
     adj = np.zeros((num_vertices, num_vertices), dtype=np.float64)
-    adj[i, j] = 1.0
-    adj[j, i] = 1.0
+    adj[edges[:, 0], edges[:, 1]] = 1.0
+    adj[edges[:, 1], edges[:, 0]] = 1.0
     lap = np.diag(adj.sum(axis=1)) - adj
     return np.linalg.inv(np.eye(num_vertices) + lam * lap).astype(np.float32)
 
@@ -223,7 +222,7 @@ class MeshPredictor(nn.Module):
     steps in inverse rendering"), the local head's output ``u`` is mapped to offsets
     ``(I + lambda L)^-1 u`` with ``L`` the template's combinatorial Laplacian: a fixed linear map
     (a constant V x V matrix in the exported graph) whose rows are non-negative and sum to 1, so the
-    offsets stay within ``local_scale`` and noisy per-vertex updates are averaged over a
+    offsets stay within the head's bound and noisy per-vertex updates are averaged over a
     neighbourhood of about ``sqrt(lambda)`` rings. ``smoothing=0`` gives the plain parametrisation.
 
     Args:
@@ -287,7 +286,7 @@ class MeshPredictor(nn.Module):
         raw = self.local_head(h)
         if self.local_bound == "tanh":
             raw = torch.tanh(raw)
-        else:  # "clamp": linear inside [-1, 1], so no gradient is lost until the bound is reached
+        else:  # "clamp": linear inside +-LOCAL_CLAMP, so no gradient is lost until the bound is reached
             raw = raw.clamp(-LOCAL_CLAMP, LOCAL_CLAMP)
         local = self.local_scale * raw.view(-1, self.num_vertices, 3)
         if self.smoothing > 0:

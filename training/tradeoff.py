@@ -32,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.contract import PRECISION_VARIANTS
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
 from engine.mesh import Mesh
 
-PRECISIONS = ("fp32", "int8-predictor", "int8")
 
 
 class TradeoffError(SketchmeshError):
@@ -113,8 +113,8 @@ def run_tradeoff(
     if not variants:
         raise TradeoffError("give at least one --variant LABEL=DIR")
     for p in precisions:
-        if p not in PRECISIONS:
-            raise TradeoffError(f"unknown precision {p!r}; choose from {', '.join(PRECISIONS)}")
+        if p not in PRECISION_VARIANTS:
+            raise TradeoffError(f"unknown precision {p!r}; choose from {', '.join(PRECISION_VARIANTS)}")
     test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
     if len(test) == 0:
         raise TradeoffError(f"the test split of {data_dir} is empty")
@@ -138,7 +138,7 @@ def run_tradeoff(
             vfolder = make_variant(folder, prec, work / label)
             engine = SketchEngine(vfolder, threads=threads, cache_size=0)
             engine.load()
-            model_level = int(engine.model_info().get("template_level", 3))
+            model_level = int(engine.model_info()["template_level"])
             model_mb = sum(f.stat().st_size for f in vfolder.glob("*.onnx")) / 2**20
             for it in items[:warmup]:
                 engine.predict(it["sketch"][0].numpy())

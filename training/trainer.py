@@ -74,7 +74,8 @@ from training.networks import (
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_channels", "predictor_hidden", "predictor_latent",
                       "template_level", "predictor_smoothing", "predictor_local_bound", "sketch_size")
-"""Config fields a resumed run must share with its checkpoint (they fix the parameter shapes)."""
+"""Config fields a resumed run must share with its checkpoint (they fix the parameter shapes or
+the function the parameters were trained in)."""
 
 VAL_ITEMS = 4
 """Validation images show this many fixed items."""
