@@ -19,9 +19,9 @@ from engine.cliutil import one_line_errors, run_guarded
 
 REGISTRARS = (
     "engine.cli",  # infer, bench engine
-    "training.cli_data",  # data, bench data
-    "training.cli_train",  # train, eval, export
-    "training.cli_bench",  # bench renderer, bench fit
+    "training.cli.data",  # data, bench data
+    "training.cli.train",  # train, eval, export
+    "training.cli.bench",  # bench renderer, bench fit
 )
 
 

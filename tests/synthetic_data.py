@@ -54,7 +54,7 @@ def render_shape_arrays(mesh, views: int, size: int = 256, small_size: int = 64)
     import torch
 
     from engine.camera import frame_camera, paper_views
-    from training.networks import sobel_magnitude
+    from training.model.networks import sobel_magnitude
     from training.render import render_normals_numpy
 
     out = {k: [] for k in ("sketch", "normals256", "silhouette256", "normals64", "silhouette64", "cameras")}
@@ -117,15 +117,15 @@ def _ddp_main(data_dir: str, out_dir: str) -> None:
     import torch
 
     torch.set_num_threads(1)
-    from training.config import TrainConfig
-    from training.trainer import ResumableBatchSampler, dist_info_from_env, train
+    from training.loop.config import TrainConfig
+    from training.loop.trainer import ResumableBatchSampler, dist_info_from_env, train
 
     info = dist_info_from_env()
     cfg = TrainConfig(mode="joint", data_dir=data_dir, out_dir=str(Path(out_dir) / "run"), iters=3, batch=2,
                       base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
                       template_level=2, sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0,
                       ckpt_every=0, plot_every=0, device="cpu")
-    import training.trainer as tr
+    import training.loop.trainer as tr
 
     captured = {}
     original = tr.Trainer.run

@@ -1,4 +1,5 @@
-"""The layering rule: engine and app never load torch or training; engine never loads Qt."""
+"""The layering rules: engine and app never load torch or training; engine never loads Qt; the
+folders of training/ import only the pipeline stages before them."""
 
 import ast
 import subprocess
@@ -61,6 +62,36 @@ def test_no_source_file_imports_across_layers(package, forbidden):
     for path in files:
         bad = _imports(path) & forbidden
         assert not bad, f"{path.relative_to(ROOT)} imports {sorted(bad)}"
+
+
+# The folders of `training/`, in pipeline order: each may import only those before it (and the
+# top-level helper `training._torch`), so the model never depends on how it is trained, evaluated
+# or driven from the command line.
+TRAINING_PIPELINE = ("render", "data", "model", "loop", "export", "evaluation", "bench", "cli")
+
+
+def _training_imports(path: Path) -> set[str]:
+    """The `training` sub-packages/modules a file imports, e.g. {"render", "_torch"}."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    names = set()
+    for node in ast.walk(tree):
+        modules = []
+        if isinstance(node, ast.Import):
+            modules = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            modules = [node.module]
+        names |= {m.split(".")[1] for m in modules if m.startswith("training.")}
+    return names
+
+
+def test_training_folders_follow_the_pipeline():
+    found = {p.name for p in (ROOT / "training").iterdir() if (p / "__init__.py").is_file()}
+    assert found == set(TRAINING_PIPELINE), f"training/ packages {sorted(found)} != {sorted(TRAINING_PIPELINE)}"
+    for i, folder in enumerate(TRAINING_PIPELINE):
+        allowed = {folder, "_torch", *TRAINING_PIPELINE[:i]}
+        for path in sorted((ROOT / "training" / folder).rglob("*.py")):
+            bad = _training_imports(path) - allowed
+            assert not bad, f"{path.relative_to(ROOT)} imports training.{sorted(bad)}; {folder}/ may use only {sorted(allowed)}"
 
 
 def test_cli_works_without_the_training_package(tmp_path):

@@ -11,7 +11,7 @@ import torch
 
 from engine.icosphere import icosphere
 from engine.mesh import Mesh, unique_edges
-from training.losses import (
+from training.model.losses import (
     LossWeights,
     MeshLoss,
     dihedral_cosines,

@@ -8,7 +8,7 @@ import trimesh
 
 from engine.icosphere import icosphere
 from engine.mesh import Mesh
-from training.metrics import (
+from training.evaluation.metrics import (
     chamfer_l1,
     normal_consistency,
     sample_surface,

@@ -37,9 +37,9 @@ def test_two_process_ddp_replicas_stay_identical(tmp_path):
     # only rank 0 wrote the run folder, and training really changed the weights
     run = out / "run"
     assert (run / "checkpoints" / "ckpt_00000003.pt").is_file()
-    from training.checkpoint import load_latest_checkpoint
-    from training.config import TrainConfig
-    from training.trainer import build_models
+    from training.loop.checkpoint import load_latest_checkpoint
+    from training.loop.config import TrainConfig
+    from training.loop.trainer import build_models
 
     state = load_latest_checkpoint(run)
     assert state["extra"]["world_size"] == 2

@@ -15,10 +15,10 @@ ort = pytest.importorskip("onnxruntime")
 from engine import contract as C  # noqa: E402
 from engine.errors import ModelError  # noqa: E402
 from engine.icosphere import icosphere  # noqa: E402
-from training.config import TrainConfig  # noqa: E402
-from training.export_onnx import PARITY_TOLERANCE, export_models, export_run  # noqa: E402
-from training.networks import downsample_normals  # noqa: E402
-from training.trainer import Trainer, load_run  # noqa: E402
+from training.export.to_onnx import PARITY_TOLERANCE, export_models, export_run  # noqa: E402
+from training.loop.config import TrainConfig  # noqa: E402
+from training.loop.trainer import Trainer, load_run  # noqa: E402
+from training.model.networks import downsample_normals  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synthetic_data import write_synthetic_dataset  # noqa: E402
@@ -130,7 +130,7 @@ def test_int8_all_export_quantizes_both_networks(run_dir, tmp_path, exported):
 
 
 def test_failed_parity_writes_nothing(run_dir, tmp_path, monkeypatch):
-    import training.export_onnx as ex
+    import training.export.to_onnx as ex
 
     class Broken:
         def __init__(self, real):
@@ -163,7 +163,7 @@ def test_export_bad_input_is_a_clear_error(run_dir, tmp_path):
 
 
 def test_resample_level_nests_and_subdivides():
-    from training.tradeoff import TradeoffError, resample_level
+    from training.evaluation.tradeoff import TradeoffError, resample_level
 
     fine = icosphere(3)
     coarse = resample_level(fine, 3, 2)
@@ -224,7 +224,7 @@ def test_gallery_writes_one_row_per_category(run_dir, exported, tmp_path, capsys
 
 def test_shade_is_lambert_with_a_white_background():
     from engine.camera import encode_normals
-    from training.gallery import LIGHT, shade
+    from training.evaluation.gallery import LIGHT, shade
 
     n = np.stack([LIGHT, -LIGHT, np.array([0.0, 0.0, 1.0])])[None]  # (1, 3, 3)
     img = shade(encode_normals(n), np.array([[1, 1, 1]]))
@@ -233,7 +233,7 @@ def test_shade_is_lambert_with_a_white_background():
 
 
 def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
-    from training.evaluate import METRICS, markdown_table
+    from training.evaluation.evaluate import METRICS, markdown_table
 
     def method(iou, cd):
         per = {"car": {"voxel_iou": iou, "chamfer_l1": cd}, "lamp": {"voxel_iou": iou / 2, "chamfer_l1": 2 * cd}}

@@ -9,8 +9,8 @@ torch = pytest.importorskip("torch")
 
 from engine.camera import Camera, frame_camera, look_at, relative_camera  # noqa: E402
 from engine.icosphere import icosphere  # noqa: E402
-from training.config import TrainConfig  # noqa: E402
-from training.networks import (  # noqa: E402
+from training.loop.config import TrainConfig  # noqa: E402
+from training.model.networks import (  # noqa: E402
     MeshPredictor,
     NormalGenerator,
     PatchDiscriminator,
@@ -113,7 +113,7 @@ def test_predictor_starts_near_the_template_and_offsets_stay_bounded():
 
 
 def test_smoothing_operator_is_a_convex_averaging():
-    from training.networks import smoothing_operator
+    from training.model.networks import smoothing_operator
 
     mesh = icosphere(2)
     assert np.array_equal(smoothing_operator(mesh.faces, mesh.num_vertices, 0.0), np.eye(162, dtype=np.float32))

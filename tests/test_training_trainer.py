@@ -17,13 +17,13 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from engine.errors import ModelError  # noqa: E402
-from training.checkpoint import (  # noqa: E402
+from training.loop.checkpoint import (  # noqa: E402
     checkpoint_paths,
     load_latest_checkpoint,
     save_checkpoint,
 )
-from training.config import TrainConfig  # noqa: E402
-from training.trainer import Trainer, _to_device  # noqa: E402
+from training.loop.config import TrainConfig  # noqa: E402
+from training.loop.trainer import Trainer, _to_device  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synthetic_data import write_synthetic_dataset  # noqa: E402
@@ -170,8 +170,8 @@ def test_cli_trains_every_mode_then_evaluates(data_dir, tmp_path, capsys):
 def test_retrieval_finds_the_query_itself_when_it_is_in_the_train_split(data_dir):
     """Evaluate the train split with ground-truth normals: retrieval returns the same shape and view, so
     its meshes are the ground truth (voxel IoU 1, Chamfer ~ sampling noise)."""
-    from training.evaluate import evaluate
-    from training.trainer import Trainer
+    from training.evaluation.evaluate import evaluate
+    from training.loop.trainer import Trainer
 
     run = data_dir.parent / "retrieval_run"
     Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(run), iters=1, **TINY), progress=False).run()
@@ -185,8 +185,8 @@ def test_view_frame_rendering_reproduces_the_dataset_targets(data_dir):
     view_frame_cameras matches the dataset's normal images and silhouettes of the input view and the
     other view (which were rendered in the world frame with the views' own cameras)."""
     from training.data.dataset import ShapeViewDataset
-    from training.networks import view_frame_cameras
-    from training.trainer import mesh_targets, render_views
+    from training.loop.trainer import mesh_targets, render_views
+    from training.model.networks import view_frame_cameras
 
     ds = ShapeViewDataset(data_dir, "train", extra_views=1, augment_strength=0.0)
     for i in (0, len(ds) - 1):

@@ -1,4 +1,20 @@
-"""Sketchmesh training: torch. Differentiable rasterizer, losses, networks, data, trainer.
+"""Sketchmesh training (torch): everything that makes the models the engine runs.
+
+The folders follow the pipeline, from data to a model folder:
+
+    data/        -- procedural shapes, mesh loaders, line drawings, augmentation, the dataset on disk
+    render/      -- the differentiable rasterizer (paper Eq. 1), its loop reference and dense baseline
+    model/       -- the two networks and the mesh predictor's losses (paper Eq. 2-10)
+    loop/        -- the one training config, the trainer (normals / mesh / joint, DDP), checkpoints
+    export/      -- a trained run -> the engine's two ONNX files, parity-checked
+    evaluation/  -- metrics, ``sketchmesh eval``, the accuracy/latency trade-off study, the gallery
+    bench/       -- benchmarks of the training machinery (the rasterizer)
+    cli/         -- the subcommands ``sketchmesh`` registers (argparse only; torch loads lazily)
+
+At the top level: ``fit.py`` (fitting the icosphere to one mesh through the renderer alone:
+``sketchmesh bench fit`` and the fit tests), ``_torch.py`` (the lazy torch import with a clear
+message when the ``train`` extra is missing) and ``reproduce_models.sh``. ``losses.py`` and
+``metrics.py`` are aliases of their new homes kept for ``fit.py`` only.
 
 May import :mod:`engine` (shared geometry, cameras, export), never :mod:`app`.
 """

@@ -41,11 +41,11 @@ class TrainConfig:
         predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512).
         template_level: icosphere level (3 -> 642 vertices, the paper's).
         predictor_local_bound: "tanh" or "clamp" bound of the predictor's local offsets (see
-            :class:`training.networks.MeshPredictor`).
+            :class:`training.model.networks.MeshPredictor`).
         normal_region: "image" (Eq. 2 over the whole image, the paper's) or "target" (inside the
-            ground-truth silhouette only; see :class:`training.losses.MeshLoss`).
+            ground-truth silhouette only; see :class:`training.model.losses.MeshLoss`).
         predictor_smoothing: lambda of the predictor's smooth offsets ``(I + lambda L)^-1`` (0: off;
-            see :class:`training.networks.MeshPredictor`).
+            see :class:`training.model.networks.MeshPredictor`).
         extra_views: K other known views rendered per sample for the mesh loss.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
@@ -196,7 +196,7 @@ class TrainConfig:
 def code_version() -> str:
     """``engine.__version__`` plus ``git describe --always --dirty`` of the source tree when available."""
     version = engine.__version__
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     try:
         out = subprocess.run(
             ["git", "describe", "--always", "--dirty"], cwd=root, capture_output=True, text=True, timeout=5

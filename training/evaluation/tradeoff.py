@@ -39,7 +39,6 @@ from engine.icosphere import TEMPLATE_RADIUS, icosphere
 from engine.mesh import Mesh
 
 
-
 class TradeoffError(SketchmeshError):
     """The trade-off benchmark cannot run (bad variant spec, empty split, level out of range)."""
 
@@ -107,8 +106,8 @@ def run_tradeoff(
     from engine.bench import make_variant
     from engine.pipeline import SketchEngine
     from training.data.dataset import ShapeViewDataset
-    from training.evaluate import _pair_metrics, world_vertices
-    from training.metrics import solid_voxels
+    from training.evaluation.evaluate import _pair_metrics, world_vertices
+    from training.evaluation.metrics import solid_voxels
 
     if not variants:
         raise TradeoffError("give at least one --variant LABEL=DIR")

@@ -54,7 +54,7 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
     from engine.mesh import Mesh
     from engine.pipeline import SketchEngine
     from training.data.dataset import ShapeViewDataset
-    from training.evaluate import world_vertices
+    from training.evaluation.evaluate import world_vertices
 
     test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
     chosen: dict[str, list[int]] = {}

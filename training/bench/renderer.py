@@ -175,7 +175,7 @@ def run_config(
 
 def _run_in_subprocess(args: list[str], timeout: float) -> dict:
     code = (
-        "import json, sys; from training.bench_renderer import run_config; "
+        "import json, sys; from training.bench.renderer import run_config; "
         "print('RESULT ' + json.dumps(run_config(*[float(a) if '.' in a else int(a) for a in sys.argv[1:]])))"
     )
     env = dict(os.environ, OMP_NUM_THREADS=args[3])
@@ -204,7 +204,7 @@ def format_table(records: list[dict]) -> str:
 
 
 def main_bench_renderer(args) -> int:
-    """Entry point of ``sketchmesh bench renderer`` (args from :mod:`training.cli_bench`)."""
+    """Entry point of ``sketchmesh bench renderer`` (args from :mod:`training.cli.bench`)."""
     from tqdm import tqdm
 
     from engine.fileio import atomic_write_text

@@ -1,8 +1,8 @@
 """``sketchmesh train | eval | export``: cheap to import (argparse only; torch loads inside commands).
 
-Every :class:`training.config.TrainConfig` field has a flag (``--lambda-n 0`` etc.); the config is
-built once here and passed down. Also runnable as ``python -m training.cli_train ...`` (handy
-under ``torchrun --nproc_per_node 2 -m training.cli_train train mesh ...``).
+Every :class:`training.loop.config.TrainConfig` field has a flag (``--lambda-n 0`` etc.); the config is
+built once here and passed down. Also runnable as ``python -m training.cli.train ...`` (handy
+under ``torchrun --nproc_per_node 2 -m training.cli.train train mesh ...``).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ class ConfigError(SketchmeshError):
 
 
 def _add_config_flags(parser: argparse.ArgumentParser) -> None:
-    from training.config import TrainConfig
+    from training.loop.config import TrainConfig
 
     for f in dataclasses.fields(TrainConfig):
         if f.name in _EXPLICIT:
@@ -48,7 +48,7 @@ def _add_config_flags(parser: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace):
     """Build the one TrainConfig from parsed flags (unset flags keep the dataclass defaults)."""
-    from training.config import TrainConfig
+    from training.loop.config import TrainConfig
 
     values = {"mode": args.mode, "data_dir": args.data, "out_dir": args.out}
     for f in dataclasses.fields(TrainConfig):
@@ -70,7 +70,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
-    from training.trainer import train
+    from training.loop.trainer import train
 
     last = train(cfg, resume=args.resume, progress=not args.quiet)
     if os.environ.get("RANK", "0") != "0":  # under torchrun only rank 0 reports
@@ -87,7 +87,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
-    from training.evaluate import evaluate_cli
+    from training.evaluation.evaluate import evaluate_cli
 
     return evaluate_cli(args)
 
@@ -98,7 +98,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
-    from training.export_onnx import export_run
+    from training.export.to_onnx import export_run
 
     reports = export_run(args.run, args.output, generator_run=args.generator_run,
                          predictor_run=args.predictor_run, quantize=args.quantize)
@@ -161,7 +161,7 @@ def register(commands, bench) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Standalone entry point with only these three commands (same error handling as sketchmesh)."""
-    parser = argparse.ArgumentParser(prog="python -m training.cli_train")
+    parser = argparse.ArgumentParser(prog="python -m training.cli.train")
     parser.add_argument("--debug", action="store_true")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     register(commands, None)

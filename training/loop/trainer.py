@@ -1,6 +1,6 @@
 """The bundled trainer: normal generator (cGAN), mesh predictor, and joint fine-tuning.
 
-One :class:`Trainer` runs every mode of :class:`training.config.TrainConfig`:
+One :class:`Trainer` runs every mode of :class:`training.loop.config.TrainConfig`:
 
 ``normals``
     pix2pix cGAN (Eq. 7-10): D sees (sketch, real) and (sketch, G(sketch)); G minimises
@@ -8,8 +8,8 @@ One :class:`Trainer` runs every mode of :class:`training.config.TrainConfig`:
 ``mesh``
     The predictor reads the ground-truth 64x64 normal image; its mesh (view frame) is rendered by
     :func:`training.render.rasterize` from the input view and ``extra_views`` other known views
-    (:func:`training.networks.view_frame_cameras`) and compared with their normal images and
-    silhouettes by Eq. 6 (:class:`training.losses.MeshLoss`). Adam.
+    (:func:`training.model.networks.view_frame_cameras`) and compared with their normal images and
+    silhouettes by Eq. 6 (:class:`training.model.losses.MeshLoss`). Adam.
 ``joint``
     G's output, area-downsampled to 64x64, feeds the predictor; the mesh loss (times
     ``joint_mesh_weight``) and G's own losses fine-tune G and the predictor together.
@@ -58,9 +58,9 @@ from torch import nn
 from engine.errors import ModelError, SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
-from training.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
-from training.config import TrainConfig, code_version
-from training.networks import (
+from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
+from training.loop.config import TrainConfig, code_version
+from training.model.networks import (
     MeshPredictor,
     NormalGenerator,
     PatchDiscriminator,
@@ -270,7 +270,7 @@ def render_views(vertices: torch.Tensor, faces: torch.Tensor, cameras: torch.Ten
     Args:
         vertices: (B, V, 3) view-frame vertices.
         faces: (F, 3) int64.
-        cameras: (B, 1 + K, 16) from :func:`training.networks.view_frame_cameras`.
+        cameras: (B, 1 + K, 16) from :func:`training.model.networks.view_frame_cameras`.
 
     Returns:
         RenderOutput of batch B * (1 + K) (view-major within each item).
@@ -338,7 +338,7 @@ class Trainer:
         self.optimizers = build_optimizers(cfg, self.models)
         self.mesh_loss = None
         if cfg.uses_predictor:
-            from training.losses import LossWeights, MeshLoss
+            from training.model.losses import LossWeights, MeshLoss
 
             template = icosphere(cfg.template_level, TEMPLATE_RADIUS)
             self.mesh_loss = MeshLoss(template, LossWeights(cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m),

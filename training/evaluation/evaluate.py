@@ -43,8 +43,8 @@ import torch
 from engine.errors import ModelError, SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.mesh import Mesh
-from training.config import TrainConfig
-from training.networks import downsample_normals, view_frame_cameras
+from training.loop.config import TrainConfig
+from training.model.networks import downsample_normals, view_frame_cameras
 
 METRICS = ("voxel_iou", "chamfer_l1", "normal_consistency", "silhouette_iou")
 HIGHER_IS_BETTER = {"voxel_iou": True, "chamfer_l1": False, "normal_consistency": True, "silhouette_iou": True}
@@ -138,7 +138,7 @@ class _RetrievalMethod(_Method):
 
 
 def _load_models(run: str | Path, need_generator: bool, fallback_generator=None):
-    from training.trainer import load_run
+    from training.loop.trainer import load_run
 
     cfg, models, _ = load_run(run)
     if "predictor" not in models:
@@ -161,7 +161,7 @@ def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarr
 
 
 def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int) -> dict[str, float]:
-    from training.metrics import solid_voxels, surface_metrics
+    from training.evaluation.metrics import solid_voxels, surface_metrics
 
     pv = solid_voxels(pred, resolution)
     union = int(np.count_nonzero(pv | gt_voxels))
@@ -224,7 +224,7 @@ def evaluate(
     """
     from tqdm import tqdm
 
-    from training.trainer import load_run, make_dataset
+    from training.loop.trainer import load_run, make_dataset
 
     t_start = time.perf_counter()
     if voxel_resolution < 4:
@@ -269,7 +269,7 @@ def evaluate(
     records: dict[str, list[dict]] = {m.name: [] for m in methods}
 
     def gt_mesh(cat: str, sid: str) -> tuple[Mesh, np.ndarray]:
-        from training.metrics import solid_voxels
+        from training.evaluation.metrics import solid_voxels
 
         if (cat, sid) not in gt_cache:
             mesh = test_set.load_mesh(cat, sid)
@@ -301,7 +301,7 @@ def evaluate(
             for it, mesh, sl in zip(items, meshes, sil):
                 gmesh, gvox = gt_mesh(it["category"], it["shape_id"])
                 rec = _pair_metrics(mesh, gmesh, gvox, voxel_resolution)
-                from training.metrics import silhouette_iou
+                from training.evaluation.metrics import silhouette_iou
 
                 rec["silhouette_iou"] = silhouette_iou(sl, np.asarray(it["silhouette64"]) > 0.5)
                 rec.update(category=it["category"], shape_id=it["shape_id"], view=int(it["view"]))
@@ -391,7 +391,7 @@ def _json_safe(x):
 
 
 def evaluate_cli(args: argparse.Namespace) -> int:
-    """The ``sketchmesh eval`` command (see :mod:`training.cli_train`)."""
+    """The ``sketchmesh eval`` command (see :mod:`training.cli.train`)."""
     if args.max_samples < 0:
         raise EvaluationError(f"--max-samples must be >= 0, got {args.max_samples}")
     if not Path(args.run).is_dir():

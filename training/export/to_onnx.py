@@ -40,7 +40,7 @@ from engine import contract
 from engine.errors import ModelError
 from engine.fileio import atomic_write_bytes
 from engine.icosphere import TEMPLATE_RADIUS
-from training.config import TrainConfig
+from training.loop.config import TrainConfig
 
 OPSET = 17
 PARITY_TOLERANCE = 1e-4
@@ -152,7 +152,7 @@ def parity_inputs(cfg: TrainConfig, count: int = PARITY_SAMPLES) -> tuple[torch.
     """
     for split in ("test", "val", "train"):
         try:
-            from training.trainer import make_dataset
+            from training.loop.trainer import make_dataset
 
             ds = make_dataset(cfg.replace(augment_strength=0.0, extra_views=0), split)
             if len(ds) == 0:
@@ -200,8 +200,8 @@ def export_models(
     """Export, check parity, then write atomically. Raises ModelError if parity fails (nothing written).
 
     Args:
-        generator: :class:`training.networks.NormalGenerator` or None.
-        predictor: :class:`training.networks.MeshPredictor` or None.
+        generator: :class:`training.model.networks.NormalGenerator` or None.
+        predictor: :class:`training.model.networks.MeshPredictor` or None.
         out_dir: destination folder (created).
         config_json: resolved training config (metadata ``config``), or one per role
             ({"generator": ..., "predictor": ...}) when the two come from different runs.
@@ -295,7 +295,7 @@ def export_run(
     ``predictor_run`` (default ``run_dir``); a joint run holds both. Parity inputs come from the
     dataset of the run's config (:func:`parity_inputs`).
     """
-    from training.trainer import load_run
+    from training.loop.trainer import load_run
 
     if quantize not in QUANTIZE_CHOICES:
         raise ValueError(f"quantize must be one of {', '.join(QUANTIZE_CHOICES)}, got {quantize!r}")

@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 import math
 
-from engine.contract import PRECISION_VARIANTS
 from engine.cliutil import float_in, int_in, one_line_errors, positive_int
+from engine.contract import PRECISION_VARIANTS
 
 _resolution = int_in(1, 2048)
 _non_negative_float = float_in(0.0, math.inf)
@@ -31,10 +31,10 @@ def _lazy(module: str, function: str):
     return command
 
 
-_cmd_bench_renderer = _lazy("training.bench_renderer", "main_bench_renderer")
+_cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
 _cmd_bench_fit = _lazy("training.fit", "main_fit")
-_cmd_bench_tradeoff = _lazy("training.tradeoff", "main_tradeoff")
-_cmd_gallery = _lazy("training.gallery", "main_gallery")
+_cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
+_cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 
 
 def register(commands, bench) -> None:
