@@ -25,7 +25,7 @@ def dense_bytes_per_image(num_faces: int, image_size: int) -> int:
 
 
 def _dense_fragments(screen: Tensor, inv_w: Tensor, vvalid: Tensor, faces: Tensor, S: int, cull: bool):
-    """(face_index, depth, coef) like :func:`training.render.rasterize._rasterize_fragments`, densely."""
+    """(face_index, depth, coef, keep) like :func:`training.render.rasterize._rasterize_fragments`, densely."""
     with torch.no_grad():
         B = screen.shape[0]
         F = faces.shape[0]
@@ -49,7 +49,7 @@ def _dense_fragments(screen: Tensor, inv_w: Tensor, vvalid: Tensor, faces: Tenso
             best, idx = depth.min(dim=0)  # first minimum = smallest face index on ties
             fis.append(torch.where(torch.isinf(best), torch.full_like(idx, -1), idx))
             deps.append(best)
-        return torch.stack(fis), torch.stack(deps), coef
+        return torch.stack(fis), torch.stack(deps), coef, keep
 
 
 def dense_rasterize(vertices, faces, cameras, image_size, *, delta=1.0, shading="flat", cull_backfaces=False):
@@ -57,8 +57,8 @@ def dense_rasterize(vertices, faces, cameras, image_size, *, delta=1.0, shading=
     vertices, faces, cams = _R._check_inputs(vertices, faces, cameras, image_size, delta, shading)
     S = int(image_size)
     p_cam, screen, inv_w, vvalid = _R.project_vertices(vertices, cams, S)
-    face_index, depth, coef = _dense_fragments(screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces)
+    face_index, depth, coef, keep = _dense_fragments(screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces)
     image = _R._shade(p_cam, screen, inv_w, faces, face_index, shading)
     if image.requires_grad or screen.requires_grad:
-        image = _R._EdgeGradient.apply(image, screen, face_index, coef, faces, float(delta))
+        image = _R._EdgeGradient.apply(image, screen, face_index, coef, keep, faces, float(delta))
     return _R.RenderOutput(normals=image[:, :3], silhouette=image[:, 3], depth=depth, face_index=face_index)

@@ -56,10 +56,20 @@ For every pair of horizontally (resp. vertically) adjacent pixels ``p, q`` whose
 nearer at the midpoint between the two centres (depth extrapolated on each face's plane
 with perspective-correct interpolation; background is infinitely far; ties -> smaller
 face index). Let ``s`` be the pixel ``f*`` covers, ``t`` the other one, ``sigma = +1`` if
-``t`` lies at larger x (resp. y) than ``s`` else ``-1``. If ``t`` lies geometrically
-outside ``f*``, the segment from the centre of ``s`` to that of ``t`` leaves ``f*``
-through its edge ``(a, b)`` at fraction ``tau`` in ``[0, 1)`` (first exit); the crossing
-point is ``c = s + sigma * tau`` along the axis. Moving that edge along the axis:
+``t`` lies at larger x (resp. y) than ``s`` else ``-1``.
+
+*Which edge.* The edge to move is the one whose far side shows ``t``. Starting in ``f*``,
+the segment from the centre of ``s`` to that of ``t`` leaves the face through its edge
+``(a, b)`` at fraction ``tau``. If the face across that edge lies beyond it on screen (it
+continues the same visible sheet) and is not the face covering ``t``, moving the edge
+uncovers nothing: the walk steps into that face and finds where the segment leaves it,
+and so on (at most :data:`MAX_WALK_STEPS` faces), until the crossed edge is a *fold* (the
+neighbour lies on this face's side of the edge: a silhouette edge), a boundary or dropped
+neighbour, or the edge shared with ``t``'s own face (a crease). The first-exit edge alone is
+an interior edge next to the outline in most silhouette pairs of a 642-vertex sphere; using
+it overstated shrinking 10-20x against finite differences and moved the wrong vertices
+(:mod:`training.render.gradcheck` measures this). The crossing point is
+``c = s + sigma * tau`` along the axis. Moving that edge along the axis:
 
 * by ``sigma * D_t`` with ``D_t = 1 - tau`` covers ``t``: ``I_t -> I_s``;
 * by ``-sigma * D_s`` with ``D_s = tau`` uncovers ``s``: ``I_s -> I_t``
@@ -82,7 +92,10 @@ Why this variant: it keeps Eq. 1 and NMR's sign rule but only needs the O(bounda
 adjacent-pixel pairs (a few thousand per 64x64 image) instead of faces x pixels, needs no
 per-face scanline search, counts a shared mesh edge once (one boundary face per pair), and
 ``D`` in (0, 1] pixels is well conditioned once clamped. Gradients reach a vertex only
-from silhouette/crease pixels next to its edges, like NMR's within one pixel.
+from silhouette/crease pixels within one pixel of its edges, like NMR's. Against the
+finite differences of the supersampled silhouette area, the gradient agrees in sign and
+is about 5-10x larger (the mean of ``1 / max(D, D_min)`` over the pixels an edge passes),
+equally for growing and shrinking.
 
 Numerical safety: faces with any vertex at depth ``<= NEAR``, non-finite screen
 coordinates or ``|2 * area| <= AREA_EPS`` px^2 are dropped; projections use a safe
@@ -437,7 +450,9 @@ def _rasterize_fragments(screen, inv_w, vvalid, faces, image_size, cull_backface
 
     Returns:
         face_index: (B, S, S) int64 (-1 background); depth: (B, S, S) (+inf background);
-        coef: (B * F, 12) per-face edge coefficients (see :func:`_face_setup`) for the backward.
+        coef: (B * F, 12) per-face edge coefficients (see :func:`_face_setup`) for the backward;
+        keep: (B * F,) bool, the face was rasterized (not dropped as degenerate, behind the near
+        plane or culled).
     """
     with torch.no_grad():
         S = int(image_size)
@@ -518,7 +533,7 @@ def _rasterize_fragments(screen, inv_w, vvalid, faces, image_size, cull_backface
             zbuf = torch.full((npix,), float("inf"), dtype=dtype, device=device)
             fbuf = torch.full((npix,), F, dtype=torch.int64, device=device)
         face_index = torch.where(fbuf >= F, torch.full_like(fbuf, -1), fbuf).view(B, S, S)
-        return face_index, zbuf.view(B, S, S), coef
+        return face_index, zbuf.view(B, S, S), coef, keep
 
 
 # ----------------------------------------------------------------------------------------
@@ -619,7 +634,67 @@ def _plane_depth(e: Tensor, iw: Tensor) -> Tensor:
     return torch.where(ok, den / torch.where(ok, num, torch.ones_like(num)), torch.full_like(num, float("inf")))
 
 
-def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, delta):
+MAX_WALK_STEPS = 64
+"""Most faces the silhouette walk of :func:`edge_gradient_screen` crosses between two pixel centres."""
+
+
+def face_adjacency(faces: Tensor) -> tuple[Tensor, Tensor]:
+    """Neighbour across each face edge, for the silhouette walk.
+
+    Edge ``k`` of face ``f`` is opposite vertex ``k`` (from vertex ``k+1`` to ``k+2``), as in
+    :func:`_face_setup`. Built once per call with one sort over the 3F edge keys (no Python
+    loop over faces).
+
+    Args:
+        faces: (F, 3) int64 vertex indices.
+
+    Returns:
+        neighbour: (F, 3) int64, ``neighbour[f, k] = g`` means face ``g`` shares edge ``k`` of
+            ``f``; -1 where the edge is a boundary or non-manifold (not shared by exactly two faces).
+        neighbour_edge: (F, 3) int64, the local index of that edge in ``g`` (-1 where none).
+    """
+    F = faces.shape[0]
+    a = faces[:, [1, 2, 0]].reshape(-1)
+    b = faces[:, [2, 0, 1]].reshape(-1)
+    nv = int(faces.max()) + 1 if F else 1
+    key = torch.minimum(a, b) * nv + torch.maximum(a, b)  # (3F,) slot f * 3 + k
+    order = torch.argsort(key, stable=True)
+    sk = key[order]
+    n = sk.numel()
+    nb = torch.full((n,), -1, dtype=torch.int64, device=faces.device)
+    if n >= 2:
+        same_next = sk[1:] == sk[:-1]  # (n - 1,)
+        pad = torch.zeros(1, dtype=torch.bool, device=faces.device)
+        nxt = torch.cat([same_next, pad])  # slot i equals slot i + 1
+        prv = torch.cat([pad, same_next])  # slot i equals slot i - 1
+        nxt2 = torch.cat([same_next[1:], pad, pad])  # slot i + 1 equals slot i + 2
+        prv2 = torch.cat([pad, pad, same_next[:-1]])  # slot i - 1 equals slot i - 2
+        first = nxt & ~prv & ~nxt2  # exactly two equal keys: i and i + 1
+        second = prv & ~nxt & ~prv2
+        idx = torch.arange(n, device=faces.device)
+        nb = torch.where(first, order[(idx + 1).clamp(max=n - 1)], nb)
+        nb = torch.where(second, order[(idx - 1).clamp(min=0)], nb)
+    slot_nb = torch.full((n,), -1, dtype=torch.int64, device=faces.device)
+    slot_nb[order] = nb
+    neighbour = torch.where(slot_nb >= 0, slot_nb // 3, slot_nb).view(F, 3)
+    neighbour_edge = torch.where(slot_nb >= 0, slot_nb % 3, slot_nb).view(F, 3)
+    return neighbour, neighbour_edge
+
+
+def _exit_along(es: Tensor, et: Tensor) -> tuple[Tensor, Tensor]:
+    """Where the segment from s to t leaves a face: (tau, k), tau = 2 when no edge value decreases.
+
+    ``es``, ``et``: (3, N) edge values at the two pixel centres. An edge whose value decreases
+    along the segment is crossed outwards at ``tau_k = es_k / (es_k - et_k)``; the exit is the
+    first of them (``es`` clamped at 0: inside the face every decreasing edge is >= 0).
+    """
+    dec = et < es
+    es0 = es.clamp(min=0)
+    tau = torch.where(dec, es0 / torch.where(dec, es0 - et, torch.ones_like(et)), torch.full_like(et, 2.0))
+    return tau.min(dim=0)
+
+
+def edge_gradient_screen(image, grad_image, face_index, screen, coef, keep, faces, delta):
     """Eq. 1 gradient of the loss with respect to the screen coordinates (see module docstring).
 
     Args:
@@ -628,6 +703,7 @@ def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, del
         face_index: (B, S, S) int64.
         screen: (B, V, 2) vertex pixel coordinates, detached.
         coef: (B * F, 12) per-face edge coefficients and inverse depths (see :func:`_face_setup`).
+        keep: (B * F,) bool, the face was rasterized.
         faces: (F, 3) int64.
         delta: gradient strength (> 0).
 
@@ -644,6 +720,7 @@ def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, del
     flat_fi = face_index.reshape(-1)
     flat_faces = faces.reshape(-1)
     scr = screen.reshape(B * V, 2)
+    neighbour = None  # built on the first pair that needs it
     for axis in (0, 1):  # 0: x (horizontal neighbours), 1: y (vertical neighbours)
         fi = face_index
         diff = (fi[:, :, :-1] != fi[:, :, 1:]) if axis == 0 else (fi[:, :-1, :] != fi[:, 1:, :])
@@ -659,10 +736,10 @@ def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, del
         dpq = img.index_select(0, p) - img.index_select(0, q)  # (N, C)
         lq = (gimg.index_select(0, q) * dpq).sum(1)
         lp = -(gimg.index_select(0, p) * dpq).sum(1)
-        keep = torch.nonzero((lq < 0) | (lp < 0)).squeeze(1)
-        if keep.numel() == 0:
+        keep_pairs = torch.nonzero((lq < 0) | (lp < 0)).squeeze(1)
+        if keep_pairs.numel() == 0:
             continue
-        b, y, x, p, q, lq, lp = (t_.index_select(0, keep) for t_ in (b, y, x, p, q, lq, lp))
+        b, y, x, p, q, lq, lp = (t_.index_select(0, keep_pairs) for t_ in (b, y, x, p, q, lq, lp))
         fp, fq = flat_fi.index_select(0, p), flat_fi.index_select(0, q)
         xp, yp = x.to(dtype) + 0.5, y.to(dtype) + 0.5
         xq, yq = (xp + 1.0, yp) if axis == 0 else (xp, yp + 1.0)
@@ -680,12 +757,56 @@ def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, del
         kq = torch.where(fq >= 0, fq, torch.full_like(fq, F))
         p_wins = (dep_p < dep_q) | ((dep_p == dep_q) & (kp < kq))
         fstar = torch.where(p_wins, fp, fq)
+        ftgt = torch.where(p_wins, fq, fp)  # the face (or -1) covering the other pixel t
         es = torch.where(p_wins, ep_p, eq_q)  # (3, N) boundary face at its own pixel s
         et = torch.where(p_wins, ep_q, eq_p)  # (3, N) boundary face at the other pixel t
-        exits = et < 0
-        es0 = es.clamp(min=0)
-        tau = torch.where(exits, es0 / torch.where(exits, es0 - et, torch.ones_like(et)), torch.full_like(et, 2.0))
-        tau_min, k = tau.min(dim=0)
+        cs_x = torch.where(p_wins, xp, xq)
+        cs_y = torch.where(p_wins, yp, yq)
+        ct_x = torch.where(p_wins, xq, xp)
+        ct_y = torch.where(p_wins, yq, yp)
+        tau_min, k = _exit_along(es, et)
+        # Silhouette walk: the edge that f* is left by may be an interior edge shared with
+        # another face of the same visible sheet (the neighbour lies beyond it on screen), and
+        # moving it uncovers nothing. Step across such edges along the segment s -> t until the
+        # edge crossed is the one whose far side shows t: a fold (the neighbour folds back under
+        # this face: a silhouette edge), a boundary or dropped neighbour, or t's own face.
+        fend = fstar.clone()
+        walking = torch.nonzero(tau_min <= 1.0).squeeze(1)
+        for step in range(MAX_WALK_STEPS + 1):
+            if walking.numel() == 0:
+                break
+            if neighbour is None:
+                neighbour, neighbour_edge = face_adjacency(faces)
+                flat_nb, flat_nbe = neighbour.reshape(-1), neighbour_edge.reshape(-1)
+            fw, kw = fend.index_select(0, walking), k.index_select(0, walking)
+            bw = b.index_select(0, walking)
+            slot = fw * 3 + kw
+            nbr = flat_nb.index_select(0, slot)
+            nbr_safe = nbr.clamp(min=0)
+            nbr_ok = (nbr >= 0) & keep.index_select(0, bw * F + nbr_safe) & (nbr != ftgt.index_select(0, walking))
+            # fold test: the neighbour's far vertex against the crossed edge of this face
+            far = flat_faces.index_select(0, nbr_safe * 3 + flat_nbe.index_select(0, slot).clamp(min=0))
+            d = scr.index_select(0, bw * V + far)
+            cfw = coef.index_select(0, bw * F + fw)
+            ed = cfw.gather(1, kw[:, None]).squeeze(1) * d[:, 0] + (
+                cfw.gather(1, (kw + 3)[:, None]).squeeze(1) * d[:, 1] + cfw.gather(1, (kw + 6)[:, None]).squeeze(1)
+            )
+            cont = nbr_ok & (ed < 0)
+            walking, nbr = walking[cont], nbr[cont]
+            if step == MAX_WALK_STEPS:  # walk too long (a pathological fan of slivers): drop the pair
+                tau_min = tau_min.index_fill(0, walking, 2.0)
+                break
+            if walking.numel() == 0:
+                break
+            bw = b.index_select(0, walking)
+            cfn = coef.index_select(0, bw * F + nbr).t()
+            es_n = _edge_values(cfn, cs_x.index_select(0, walking), cs_y.index_select(0, walking))
+            et_n = _edge_values(cfn, ct_x.index_select(0, walking), ct_y.index_select(0, walking))
+            tn, kn = _exit_along(es_n, et_n)
+            fend = fend.index_copy(0, walking, nbr)
+            k = k.index_copy(0, walking, kn)
+            tau_min = tau_min.index_copy(0, walking, tn)
+            walking = walking[tn <= 1.0]
         sel = torch.nonzero(tau_min <= 1.0).squeeze(1)
         if sel.numel() == 0:
             continue
@@ -693,13 +814,12 @@ def edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, del
         pw = p_wins.index_select(0, sel)
         b_ = b.index_select(0, sel)
         sigma = 1.0 - 2.0 * (~pw).to(dtype)
-        fs = fstar.index_select(0, sel)
+        fs = fend.index_select(0, sel)
         va = flat_faces.index_select(0, fs * 3 + (k + 1) % 3)
         vb = flat_faces.index_select(0, fs * 3 + (k + 2) % 3)
         pa = scr.index_select(0, b_ * V + va)
         pb = scr.index_select(0, b_ * V + vb)
-        cs_x = torch.where(pw, xp.index_select(0, sel), xq.index_select(0, sel))
-        cs_y = torch.where(pw, yp.index_select(0, sel), yq.index_select(0, sel))
+        cs_x, cs_y = cs_x.index_select(0, sel), cs_y.index_select(0, sel)
         if axis == 0:
             cx_, cy_ = cs_x + sigma * tau_min, cs_y
         else:
@@ -723,18 +843,18 @@ class _EdgeGradient(torch.autograd.Function):
     """Identity on the image in forward; adds the Eq. 1 gradient to the screen coordinates in backward."""
 
     @staticmethod
-    def forward(ctx, image, screen, face_index, coef, faces, delta):
-        ctx.save_for_backward(image.detach(), screen.detach(), face_index, coef, faces)
+    def forward(ctx, image, screen, face_index, coef, keep, faces, delta):
+        ctx.save_for_backward(image.detach(), screen.detach(), face_index, coef, keep, faces)
         ctx.delta = float(delta)
         return image.clone()
 
     @staticmethod
     def backward(ctx, grad_image):
-        image, screen, face_index, coef, faces = ctx.saved_tensors
+        image, screen, face_index, coef, keep, faces = ctx.saved_tensors
         grad_screen = None
         if ctx.needs_input_grad[1]:
-            grad_screen = edge_gradient_screen(image, grad_image, face_index, screen, coef, faces, ctx.delta)
-        return grad_image, grad_screen, None, None, None, None
+            grad_screen = edge_gradient_screen(image, grad_image, face_index, screen, coef, keep, faces, ctx.delta)
+        return grad_image, grad_screen, None, None, None, None, None
 
 
 # ----------------------------------------------------------------------------------------
@@ -777,10 +897,12 @@ def rasterize(
     vertices, faces, cams = _check_inputs(vertices, faces, cameras, image_size, delta, shading)
     S = int(image_size)
     p_cam, screen, inv_w, vvalid = project_vertices(vertices, cams, S)
-    face_index, depth, coef = _rasterize_fragments(screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces)
+    face_index, depth, coef, keep = _rasterize_fragments(
+        screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces
+    )
     image = _shade(p_cam, screen, inv_w, faces, face_index, shading)
     if image.requires_grad or screen.requires_grad:
-        image = _EdgeGradient.apply(image, screen, face_index, coef, faces, float(delta))
+        image = _EdgeGradient.apply(image, screen, face_index, coef, keep, faces, float(delta))
     return RenderOutput(normals=image[:, :3], silhouette=image[:, 3], depth=depth, face_index=face_index)
 
 

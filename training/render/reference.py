@@ -8,7 +8,8 @@ pixels, faces and pixel pairs in float64, so each rule can be checked by reading
   (canonical endpoint order) with the top-left rule for ``e_k == 0``;
 * depth: ``sum(e) / sum(e * inv_w)``; nearest depth wins, then the smallest face index;
 * shading with scalar torch ops per pixel (so autograd gives the interior gradient);
-* edge gradient: a loop over every horizontally / vertically adjacent pixel pair.
+* edge gradient: a loop over every horizontally / vertically adjacent pixel pair, with the
+  silhouette walk across faces done one face at a time with a dict of shared edges.
 
 Only for tiny images (8x8 to 16x16) and a few faces: it is O(pixels x faces).
 """
@@ -24,6 +25,7 @@ from engine.camera import NEAR
 from training.render.rasterize import (
     AREA_EPS,
     BARY_EPS,
+    MAX_WALK_STEPS,
     MIN_EDGE_DISTANCE_PX,
     NORMAL_EPS_SQ,
     RenderOutput,
@@ -136,6 +138,18 @@ def _normalize(n):
     return n / torch.sqrt(torch.clamp((n * n).sum(), min=NORMAL_EPS_SQ))
 
 
+def _first_exit(es, et):
+    """(tau, k): where the segment s -> t leaves a face whose edge values are es, et (tau 2.0: never)."""
+    best_tau, best_k = 2.0, -1
+    for k in range(3):
+        if et[k] < es[k]:
+            e0 = max(es[k], 0.0)
+            tau = e0 / (e0 - et[k])
+            if tau < best_tau:
+                best_tau, best_k = tau, k
+    return best_tau, best_k
+
+
 def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, faces, infos, delta):
     """Loop version of the Eq. 1 gradient for one image.
 
@@ -151,6 +165,11 @@ def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, fac
     img = image.tolist()
     gimg = grad_image.tolist()
     grad = [[0.0, 0.0] for _ in range(V)]
+    edge_faces: dict[tuple[int, int], list[int]] = {}
+    for fid, f in enumerate(faces):
+        for k in range(3):
+            a_, b_ = f[(k + 1) % 3], f[(k + 2) % 3]
+            edge_faces.setdefault((min(a_, b_), max(a_, b_)), []).append(fid)
 
     def colour(r, c):
         return [img[ch][r][c] for ch in range(4)]
@@ -179,16 +198,29 @@ def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, fac
                 p_wins = depths[0] < depths[1] or (depths[0] == depths[1] and kp < kq)
                 fstar, s, t = (fp, pc, qc) if p_wins else (fq, qc, pc)
                 sigma = 1.0 if p_wins else -1.0
-                es, et = _evals(infos[fstar], *s), _evals(infos[fstar], *t)
-                best_tau, best_k = None, None
-                for k in range(3):
-                    if et[k] < 0:
-                        tau = max(es[k], 0.0) / (max(es[k], 0.0) - et[k])
-                        if best_tau is None or tau < best_tau:
-                            best_tau, best_k = tau, k
-                if best_tau is None:
+                ftgt = fq if p_wins else fp
+                face, (tau, best_k) = fstar, _first_exit(_evals(infos[fstar], *s), _evals(infos[fstar], *t))
+                steps = 0
+                while tau <= 1.0:  # walk across edges of the same visible sheet (see rasterize)
+                    a_, b_ = faces[face][(best_k + 1) % 3], faces[face][(best_k + 2) % 3]
+                    others = [g for g in edge_faces.get((min(a_, b_), max(a_, b_)), []) if g != face]
+                    if len(edge_faces[(min(a_, b_), max(a_, b_))]) != 2 or not infos[others[0]]["keep"]:
+                        break
+                    g = others[0]
+                    if g == ftgt:
+                        break
+                    far = [i for i in faces[g] if i not in (a_, b_)][0]
+                    if _evals(infos[face], *screen_xy[far])[best_k] >= 0:
+                        break  # the neighbour folds back under this face: a silhouette edge
+                    steps += 1
+                    if steps > MAX_WALK_STEPS:
+                        tau = 2.0
+                        break
+                    face = g
+                    tau, best_k = _first_exit(_evals(infos[g], *s), _evals(infos[g], *t))
+                if tau > 1.0:
                     continue
-                tau = min(max(best_tau, 0.0), 1.0)
+                tau = min(max(tau, 0.0), 1.0)
                 Ip = colour(row, col)
                 Iq = colour(rq, cq)
                 gp, gq = gcol(row, col), gcol(rq, cq)
@@ -202,8 +234,8 @@ def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, fac
                     dldc += sigma * dl_t / (delta * d_t)
                 if dl_s < 0:
                     dldc -= sigma * dl_s / (delta * d_s)
-                va = faces[fstar][(best_k + 1) % 3]
-                vb = faces[fstar][(best_k + 2) % 3]
+                va = faces[face][(best_k + 1) % 3]
+                vb = faces[face][(best_k + 2) % 3]
                 pa, pb = screen_xy[va], screen_xy[vb]
                 cross = [s[0], s[1]]
                 cross[axis] += sigma * tau
