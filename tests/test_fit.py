@@ -19,7 +19,7 @@ import trimesh
 
 from engine.errors import MeshInputError, SketchmeshError
 from engine.mesh import Mesh
-from training.fit import fit_mesh, fit_views, load_target_mesh, main_fit
+from training.bench.fit import fit_mesh, fit_views, load_target_mesh, main_fit
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -8,13 +8,12 @@ The folders follow the pipeline, from data to a model folder:
     loop/        -- the one training config, the trainer (normals / mesh / joint, DDP), checkpoints
     export/      -- a trained run -> the engine's two ONNX files, parity-checked
     evaluation/  -- metrics, ``sketchmesh eval``, the accuracy/latency trade-off study, the gallery
-    bench/       -- benchmarks of the training machinery (the rasterizer)
+    bench/       -- benchmarks of the training machinery: the rasterizer, and the direct fit of
+                    the template to a mesh (the ceiling the predictor is measured against)
     cli/         -- the subcommands ``sketchmesh`` registers (argparse only; torch loads lazily)
 
-At the top level: ``fit.py`` (fitting the icosphere to one mesh through the renderer alone:
-``sketchmesh bench fit`` and the fit tests), ``_torch.py`` (the lazy torch import with a clear
-message when the ``train`` extra is missing) and ``reproduce_models.sh``. ``losses.py`` and
-``metrics.py`` are aliases of their new homes kept for ``fit.py`` only.
+At the top level: ``_torch.py`` (the lazy torch import with a clear message when the ``train``
+extra is missing) and ``reproduce_models.sh``.
 
 May import :mod:`engine` (shared geometry, cameras, export), never :mod:`app`.
 """

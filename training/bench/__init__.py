@@ -3,9 +3,11 @@
 Modules:
     renderer -- ``sketchmesh bench renderer``: speed, memory and error of the differentiable
                 rasterizer against the dense baseline
+    fit      -- ``sketchmesh bench fit``: direct optimisation of the template to one mesh (or to
+                procedural shapes of every category) through the renderer alone: the ceiling
+                the predictor is measured against
 
-``sketchmesh bench fit`` lives in :mod:`training.fit` (still at the top level, see
-:mod:`training`); ``bench data`` in :mod:`training.cli.data`.
+``bench data`` lives in :mod:`training.cli.data`.
 
 Import the submodules directly; importing this package loads nothing heavy.
 """

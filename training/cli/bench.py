@@ -32,7 +32,7 @@ def _lazy(module: str, function: str):
 
 
 _cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
-_cmd_bench_fit = _lazy("training.fit", "main_fit")
+_cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 

@@ -4,7 +4,7 @@ This is the proof that the renderer's gradients (paper Eq. 1) and the losses (Eq
 starting from :func:`engine.icosphere.icosphere`, Adam moves a per-vertex local offset and one
 global offset (the paper's deformation ``v + dv_local + dv_global``) so that the normal images
 and silhouettes rendered from N views match the target's, rendered by the same rasterizer. No
-3D supervision is used; 3D metrics (:mod:`training.metrics`) are only computed at the end.
+3D supervision is used; 3D metrics (:mod:`training.evaluation.metrics`) are only computed at the end.
 
 Views (:func:`fit_views`): ``N - N_extra`` azimuths evenly spread at the paper's 30 degree
 elevation, plus ``N_extra = min(2, N // 3)`` views that constrain depth and the underside: one
@@ -15,7 +15,7 @@ views, so the target fills ``1 - 2 * FRAME_MARGIN`` of every image.
 The target is first normalised with :func:`engine.camera.normalize_vertices` (centred, longest
 side 1), the frame the template and the metrics use.
 
-``sketchmesh bench fit`` (argparse in :mod:`training.cli_bench`) calls :func:`main_fit`.
+``sketchmesh bench fit`` (argparse in :mod:`training.cli.bench`) calls :func:`main_fit`.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from engine.fileio import atomic_write_text
 from engine.icosphere import PAPER_LEVEL, icosphere
 from engine.mesh import Mesh, unique_edges
 from training._torch import require_torch
-from training.losses import (
+from training.model.losses import (
     NORMAL_REFERENCE_PIXELS,
     LossWeights,
     dihedral_indices,
@@ -43,7 +43,7 @@ from training.losses import (
     silhouette_iou_loss,
     total_loss,
 )
-from training.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
+from training.evaluation.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
 
 FIT_ELEVATION_DEG = 30.0
 TOP_ELEVATION_DEG = 75.0
