@@ -68,12 +68,11 @@ def register(commands, bench) -> None:
     one_line_errors(b)
 
 
-def _write_normals_png(normals, path: Path) -> None:
+def _normals_png_bytes(normals, path: Path) -> bytes:
     import cv2
     import numpy as np
 
     from engine.errors import ExportError
-    from engine.fileio import atomic_write_bytes
 
     if path.suffix.lower() != ".png":
         raise ExportError(f"--normals must name a .png file, got {path.name}")
@@ -81,25 +80,15 @@ def _write_normals_png(normals, path: Path) -> None:
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb8[..., ::-1]))
     if not ok:
         raise ExportError(f"cannot encode the normal image for {path}")
-    try:
-        atomic_write_bytes(path, buf.tobytes())
-    except OSError as exc:
-        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
-
-
-def _write_json(path: Path, record) -> None:
-    from engine.errors import ExportError
-    from engine.fileio import atomic_write_text
-
-    try:
-        atomic_write_text(path, json.dumps(record, indent=2) + "\n")
-    except OSError as exc:
-        raise ExportError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return buf.tobytes()
 
 
 def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, subdivide: int = 0,
-              normals_path: Path | None = None) -> dict:
-    """Run one sketch through the engine, post-process, export; return the report record.
+              normals_path: Path | None = None, report_path: Path | None = None) -> dict:
+    """Run one sketch through the engine, post-process, write its files; return the report record.
+
+    The mesh, the normal image and the JSON report are written all or nothing
+    (:class:`engine.fileio.StagedWrites`): if one cannot be written, none of them is.
 
     Returns:
         dict with sketch, output, timings_ms (preprocess, generator, downsample, predictor,
@@ -112,7 +101,9 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
     raster = to_raster(sketch)  # bad input fails here, before the exporters are even imported
     t_pre = time.perf_counter()
     _warm_imports()
-    from engine.export import export_mesh
+    from engine.errors import ExportError
+    from engine.export import mesh_to_bytes
+    from engine.fileio import StagedWrites
     from engine.postprocess import mesh_stats
     from engine.postprocess import smooth as smooth_mesh
     from engine.postprocess import subdivide as subdivide_mesh
@@ -125,28 +116,39 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
     if subdivide:
         mesh = subdivide_mesh(mesh, subdivide, "loop")
     t1 = time.perf_counter()
-    export_mesh(mesh, out, fmt=fmt)
-    if normals_path is not None:
-        _write_normals_png(pred.normals, normals_path)
-    t2 = time.perf_counter()
-    stats = mesh_stats(mesh)
-    t3 = time.perf_counter()
-    timings = dict(pred.timings_ms)
-    timings["preprocess"] += (t_pre - t_start) * 1e3  # the image decode and framing happened above
-    timings.update(postprocess=(t1 - t0) * 1e3, export=(t2 - t1) * 1e3, stats=(t3 - t2) * 1e3)
-    timings["total"] = sum(timings.values())  # excludes the one-off import of the exporters
-    return {
-        "sketch": str(sketch),
-        "output": str(out),
-        "format": fmt,
-        "models_dir": str(engine.models_dir),
-        "timings_ms": {k: round(v, 3) for k, v in timings.items()},
-        **stats,
-        "smooth_iterations": smooth,
-        "subdivide_levels": subdivide,
-        "cached": pred.cached,
-        "normals": str(normals_path) if normals_path is not None else None,
-    }
+    staged = StagedWrites()
+    try:
+        try:
+            staged.add(out, mesh_to_bytes(mesh, "." + fmt))
+            if normals_path is not None:
+                staged.add(normals_path, _normals_png_bytes(pred.normals, normals_path))
+            t2 = time.perf_counter()
+            stats = mesh_stats(mesh)
+            t3 = time.perf_counter()
+            timings = dict(pred.timings_ms)
+            timings["preprocess"] += (t_pre - t_start) * 1e3  # the image decode and framing happened above
+            timings.update(postprocess=(t1 - t0) * 1e3, export=(t2 - t1) * 1e3, stats=(t3 - t2) * 1e3)
+            timings["total"] = sum(timings.values())  # excludes the one-off import of the exporters
+            record = {
+                "sketch": str(sketch),
+                "output": str(out),
+                "format": fmt,
+                "models_dir": str(engine.models_dir),
+                "timings_ms": {k: round(v, 3) for k, v in timings.items()},
+                **stats,
+                "smooth_iterations": smooth,
+                "subdivide_levels": subdivide,
+                "cached": pred.cached,
+                "normals": str(normals_path) if normals_path is not None else None,
+            }
+            if report_path is not None:
+                staged.add(report_path, json.dumps(record, indent=2) + "\n")
+            staged.commit()
+        except OSError as exc:
+            raise ExportError(f"cannot write {exc.filename or out}: {exc.strerror or exc}; nothing was written") from None
+    finally:
+        staged.discard()
+    return record
 
 
 def _warm_imports() -> None:
@@ -158,6 +160,7 @@ def _warm_imports() -> None:
 
 
 def cmd_infer(args: argparse.Namespace) -> int:
+    from engine.cliutil import check_output_dir, check_output_file
     from engine.errors import ExportError, SketchInputError, SketchmeshError
     from engine.export import check_export_path, supported_suffixes
     from engine.pipeline import SketchEngine
@@ -195,6 +198,14 @@ def cmd_infer(args: argparse.Namespace) -> int:
 
     if args.normals and not many and Path(args.normals).suffix.lower() != ".png":
         raise ExportError(f"--normals must name a .png file, got {args.normals}")
+    # every output location is checked before the models load or any sketch is read
+    if folder_mode:
+        check_output_dir(out, "-o")
+    else:
+        check_output_file(out, "-o")
+    for flag, value in (("--normals", args.normals), ("--report", args.report)):
+        if value:
+            (check_output_dir if many else check_output_file)(value, flag)
 
     sketch_engine = SketchEngine(args.models, threads=args.threads)
     sketch_engine.load()  # model problems stop everything before any sketch is read
@@ -213,10 +224,8 @@ def cmd_infer(args: argparse.Namespace) -> int:
             record = infer_one(
                 sketch_engine, sketch, target, fmt, smooth=args.smooth, subdivide=args.subdivide,
                 normals_path=side_path(args.normals, sketch.stem, "_normals.png"),
+                report_path=side_path(args.report, sketch.stem, ".json"),
             )
-            report = side_path(args.report, sketch.stem, ".json")
-            if report is not None:
-                _write_json(report, record)
             t = record["timings_ms"]
             msg = (f"{sketch} -> {target} ({record['vertices']} vertices, {record['faces']} faces, "
                    f"watertight={record['watertight']}, {t['total']:.0f} ms)")

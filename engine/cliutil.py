@@ -11,10 +11,13 @@ import argparse
 import math
 import os
 import sys
+import tempfile
 import types
 from collections.abc import Callable
+from pathlib import Path
 
-from engine.errors import SketchmeshError
+from engine.errors import OutputError, SketchmeshError
+from engine.fileio import nearest_existing
 
 
 def one_line_errors(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -83,11 +86,57 @@ unit_float = float_in(0.0, 1.0)
 """argparse type: a number in [0, 1]."""
 
 
+def _label(path: Path, what: str) -> str:
+    return f"{what} {path}" if what else str(path)
+
+
+def _check_can_create(path: Path, what: str, folder: Path) -> None:
+    """Something can be created in ``folder`` (or, if absent, in its nearest existing ancestor)."""
+    base = nearest_existing(folder)
+    if not base.is_dir():
+        raise OutputError(f"{_label(path, what)}: {base} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".sketchmesh-write-test-", dir=base)
+    except OSError as exc:
+        raise OutputError(f"{_label(path, what)}: cannot write in {base} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def check_output_file(path: str | os.PathLike, what: str = "") -> Path:
+    """Check, before any work, that a file can be written at ``path`` (created or replaced).
+
+    Writes nothing that stays: a probe file is created and removed in the nearest existing
+    folder. ``what`` names the flag in the message (``"--report"``).
+
+    Raises:
+        OutputError: ``path`` is a folder, a parent of it is a file, or its folder is not writable.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise OutputError(f"{_label(p, what)}: is a folder, expected a file name")
+    _check_can_create(p, what, p.parent)
+    return p
+
+
+def check_output_dir(path: str | os.PathLike, what: str = "") -> Path:
+    """Check, before any work, that ``path`` is a writable folder or can be created as one.
+
+    Raises:
+        OutputError: ``path`` is a file, a parent of it is a file, or nothing can be written there.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"{_label(p, what)}: is a file, expected a folder")
+    _check_can_create(p, what, p)
+    return p
+
+
 def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse.Namespace) -> int:
     """Run a command function; turn errors into one stderr line and an exit code.
 
-    :class:`SketchmeshError` -> its message and ``exit_code``; Ctrl-C -> 130; anything else ->
-    its type and message, exit 1. With ``args.debug`` or ``SKETCHMESH_DEBUG=1`` the exception
+    :class:`SketchmeshError` -> its message and ``exit_code``; Ctrl-C -> 130; OSError -> the file
+    and the system's reason, exit 1; anything else -> its type and message, exit 1. With ``args.debug`` or ``SKETCHMESH_DEBUG=1`` the exception
     propagates with its traceback instead.
     """
     debug = getattr(args, "debug", False) or os.environ.get("SKETCHMESH_DEBUG") == "1"
@@ -101,6 +150,12 @@ def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse
     except KeyboardInterrupt:
         print("sketchmesh: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:  # the file system said no (disk full, permissions): name the file
+        if debug:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"sketchmesh: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
     except Exception as exc:  # last resort: one line, not a traceback
         if debug:
             raise

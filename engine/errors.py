@@ -27,5 +27,9 @@ class ExportError(SketchmeshError):
     """A mesh cannot be written (unknown format, unwritable path)."""
 
 
+class OutputError(SketchmeshError):
+    """An output file or folder cannot be written (a parent that is a file, a read-only folder)."""
+
+
 class MissingExtraError(SketchmeshError):
     """A command needs an optional dependency group that is not installed."""

@@ -128,8 +128,9 @@ def supported_suffixes() -> tuple[str, ...]:
 def _suffix(path: Path, fmt: str | None) -> str:
     suffix = ("." + fmt.lower().lstrip(".")) if fmt else path.suffix.lower()
     if suffix not in WRITERS:
-        what = f"format {fmt!r}" if fmt else f"file suffix {path.suffix!r}" if path.suffix else "a file without suffix"
-        raise ExportError(f"cannot export {path.name}: unknown {what}; supported: {', '.join(WRITERS)}")
+        what = (f"unknown format {fmt!r}" if fmt else f"unknown file suffix {path.suffix!r}" if path.suffix
+                else "the file name has no suffix to choose the format by")
+        raise ExportError(f"cannot export {path.name}: {what}; supported: {', '.join(WRITERS)}")
     return suffix
 
 

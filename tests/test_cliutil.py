@@ -59,3 +59,31 @@ def test_run_guarded_passes_results_and_debug_reraises():
     assert run_guarded(lambda args: 3, argparse.Namespace()) == 3
     with pytest.raises(RuntimeError):
         run_guarded(_raise(RuntimeError("boom")), argparse.Namespace(debug=True))
+
+
+def test_output_checks_name_the_problem_and_leave_nothing(tmp_path):
+    from engine.cliutil import check_output_dir, check_output_file
+    from engine.errors import OutputError
+
+    (tmp_path / "afile").write_text("x")
+    cases = [
+        (check_output_file, tmp_path / "afile" / "r.json", "afile is a file, not a folder"),
+        (check_output_file, tmp_path / "afile" / "a" / "b" / "r.json", "afile is a file, not a folder"),
+        (check_output_file, tmp_path, "is a folder, expected a file name"),
+        (check_output_dir, tmp_path / "afile", "is a file, expected a folder"),
+        (check_output_dir, tmp_path / "afile" / "d", "afile is a file, not a folder"),
+        (check_output_file, "/proc/sketchmesh-test/r.json", "cannot write in /proc"),  # root cannot either
+    ]
+    for check, path, needle in cases:
+        with pytest.raises(OutputError, match=needle) as exc:
+            check(path, "--flag")
+        assert str(exc.value).startswith(f"--flag {path}: ")
+    assert check_output_file(tmp_path / "new" / "r.json") == tmp_path / "new" / "r.json"
+    assert check_output_dir(tmp_path / "new2") == tmp_path / "new2"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]  # the checks wrote nothing that stays
+
+
+def test_run_guarded_names_the_file_of_an_os_error(capsys, monkeypatch):
+    monkeypatch.delenv("SKETCHMESH_DEBUG", raising=False)
+    rc = run_guarded(_raise(PermissionError(13, "Permission denied", "/x/out.obj")), argparse.Namespace(debug=False))
+    assert rc == 1 and capsys.readouterr().err == "sketchmesh: error: /x/out.obj: Permission denied\n"

@@ -97,10 +97,10 @@ def test_format_override_and_bad_paths(tmp_path):
     assert len(_load_as(p, "ply").vertices) == mesh.num_vertices
     with pytest.raises(ExportError, match=r"unknown file suffix '\.xyz'; supported: \.obj, \.glb, \.gltf, \.ply, \.stl"):
         export_mesh(mesh, tmp_path / "m.xyz")
-    with pytest.raises(ExportError, match="without suffix"):
+    with pytest.raises(ExportError, match="noext: the file name has no suffix to choose the format by"):
         export_mesh(mesh, tmp_path / "noext")
     (tmp_path / "afile").write_text("x")
-    with pytest.raises(ExportError, match="cannot write"):
+    with pytest.raises(ExportError, match="cannot write .*afile is a file, not a folder"):
         export_mesh(mesh, tmp_path / "afile" / "m.obj")
     with pytest.raises(ExportError, match="no faces"):
         export_mesh(Mesh(np.zeros((3, 3)), np.zeros((0, 3), np.int64)), tmp_path / "e.obj")
@@ -318,3 +318,36 @@ def test_atomic_writes_get_ordinary_permissions(tmp_path):
     kept.chmod(0o640)
     atomic_write_bytes(kept, b"new")
     assert stat.S_IMODE(kept.stat().st_mode) == 0o640 and kept.read_bytes() == b"new"
+
+
+def test_staged_writes_are_all_or_nothing(tmp_path):
+    from engine.fileio import StagedWrites
+
+    keep = tmp_path / "keep.obj"
+    keep.write_text("old")
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(OSError) as exc:
+        with StagedWrites() as staged:
+            staged.add(keep, "new")
+            staged.add(tmp_path / "deep" / "er" / "n.png", b"png")
+            staged.add(tmp_path / "afile" / "r.json", "{}")  # a parent that is a file
+    assert exc.value.filename == str(tmp_path / "afile" / "r.json") and "afile is a file" in exc.value.strerror
+    assert keep.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "keep.obj"]  # no temporaries, no new folders
+    with StagedWrites() as staged:
+        staged.add(keep, "new")
+        staged.add(tmp_path / "deep" / "n.png", b"png")
+    assert keep.read_text() == "new" and (tmp_path / "deep" / "n.png").read_bytes() == b"png"
+
+
+def test_atomic_write_errors_name_the_target_not_a_temporary_file(tmp_path):
+    from engine.fileio import atomic_write_text, remove_stale_temporaries
+
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(NotADirectoryError) as exc:
+        atomic_write_text(tmp_path / "afile" / "sub" / "e.json", "{}")
+    assert exc.value.filename == str(tmp_path / "afile" / "sub" / "e.json") and ".tmp" not in str(exc.value)
+    (tmp_path / ".e.json.abc123.tmp").write_text("half")
+    (tmp_path / ".other.tmp").write_text("not ours")
+    assert [p.name for p in remove_stale_temporaries(tmp_path, "e.json")] == [".e.json.abc123.tmp"]
+    assert (tmp_path / ".other.tmp").exists()

@@ -1,0 +1,235 @@
+"""Bad input and faults, swept across the command-line entry points (issue 18, part 3).
+
+Every case runs ``sketchmesh`` in-process (``sketchmesh.cli.main(argv)``) as a hostile user
+would call it and asserts the contract of every entry point:
+
+* a non-zero exit and exactly one stderr line, ``sketchmesh...: error: ...``, that contains the
+  words naming the problem (``needle``), never a traceback;
+* no output left behind: every file under the test's folder is the same before and after
+  (no mesh without its report, no run folder with a header-only log, no temporary file);
+* fast: the size of a request and every output location are checked before any work starts, so
+  each case fails in well under a few seconds (the absurd ``data`` requests used to grow memory
+  by ~100 MB/s, forever).
+
+The app's File > Open and Load models are swept in tests/test_app_bad_input.py, the kill tests
+(SIGKILL mid-checkpoint, mid-autosave) are in tests/test_kill.py.
+"""
+
+from __future__ import annotations
+
+import shutil
+import struct
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from onnx_fixtures import write_corrupt_model, write_fixture_models
+
+from engine import contract as C
+
+ROOT = Path(__file__).resolve().parents[1]
+CASE_SECONDS = 8.0
+"""Slowest acceptable bad-input case (model loading and dataset checks included), on 2 shared cores."""
+
+
+# ----------------------------------------------------------------------------------------- inputs
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def write_big_white_png(path: Path, width: int, height: int) -> Path:
+    """A real, complete 8-bit grey PNG of ``width`` x ``height`` white pixels, streamed (no big array)."""
+    row = b"\x00" + b"\xff" * width
+    z = zlib.compressobj(1)
+    idat = b"".join([z.compress(row) for _ in range(height)] + [z.flush()])
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", ihdr) + _png_chunk(b"IDAT", idat) + _png_chunk(b"IEND", b""))
+    return path
+
+
+def drawing(h: int = 240, w: int = 320) -> np.ndarray:
+    """(h, w) uint8 dark lines on white: an ellipse and its axis (a mug seen from above)."""
+    img = np.full((h, w), 255, np.uint8)
+    cv2.ellipse(img, (w // 2, h // 2), (w // 3, h // 3), 0, 0, 360, 0, 3)
+    cv2.line(img, (w // 5, h // 2), (4 * w // 5, h // 2), 0, 3)
+    return img
+
+
+def write_images(folder: Path) -> dict[str, Path]:
+    """Every kind of sketch image, bad and exotic; keys name the kind."""
+    from PIL import Image
+
+    folder.mkdir(parents=True, exist_ok=True)
+    ink = drawing()
+    p = {}
+    p["good"] = folder / "good.png"
+    cv2.imwrite(str(p["good"]), ink)
+    data = p["good"].read_bytes()
+    p["truncated"] = folder / "truncated.png"
+    p["truncated"].write_bytes(data[: len(data) // 2])
+    p["zero-byte"] = folder / "zero.png"
+    p["zero-byte"].write_bytes(b"")
+    p["1x1"] = folder / "one.png"
+    cv2.imwrite(str(p["1x1"]), np.zeros((1, 1), np.uint8))
+    p["20000x20000"] = write_big_white_png(folder / "huge.png", 20000, 20000)
+    p["all-ink"] = folder / "all_ink.png"
+    cv2.imwrite(str(p["all-ink"]), np.zeros((240, 320), np.uint8))
+    p["all-paper"] = folder / "all_paper.png"
+    cv2.imwrite(str(p["all-paper"]), np.full((240, 320), 255, np.uint8))
+    p["not-an-image"] = folder / "notes.png"
+    p["not-an-image"].write_text("shopping list: milk, eggs\n")
+    # exotic encodings of the good drawing: these must work, not fail
+    p["16-bit"] = folder / "deep.png"
+    cv2.imwrite(str(p["16-bit"]), ink.astype(np.uint16) * 257)
+    p["cmyk"] = folder / "cmyk.jpg"
+    Image.fromarray(ink).convert("CMYK").save(p["cmyk"], quality=95)
+    p["palette"] = folder / "palette.png"
+    Image.fromarray(ink).convert("P").save(p["palette"])
+    p["alpha-only"] = folder / "alpha.png"
+    rgba = np.zeros((*ink.shape, 4), np.uint8)
+    rgba[..., 3] = 255 - ink  # black everywhere; the drawing lives in the alpha channel alone
+    cv2.imwrite(str(p["alpha-only"]), rgba)
+    return p
+
+
+def write_meshes(folder: Path) -> dict[str, Path]:
+    """Mesh folders for ``data --source meshes:DIR``, one bad mesh each (keys name the kind)."""
+    out = {}
+    cases = {
+        "no-faces": ("flat.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"),
+        "nan-vertices": ("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\nf 1 4 2\nf 2 4 3\n"),
+        "truncated": ("cut.ply", "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n"),
+        "not-a-mesh": ("photo.stl", "\x00\x01garbage" * 3),
+    }
+    for kind, (name, text) in cases.items():
+        d = folder / kind / "thing"
+        d.mkdir(parents=True)
+        (d / name).write_text(text)
+        out[kind] = folder / kind
+    return out
+
+
+# ----------------------------------------------------------------------------------------- harness
+
+
+@dataclass(frozen=True)
+class Case:
+    """One bad input: the argv (built from the world's paths) and the words the error must contain."""
+
+    id: str
+    argv: Callable[[dict], list]
+    needle: str
+
+
+def snapshot(root: Path) -> dict[str, int]:
+    return {str(p.relative_to(root)): (p.stat().st_size if p.is_file() else -1) for p in root.rglob("*")}
+
+
+def run_case(case: Case, world: dict, capsys) -> str:
+    """Run one case in-process; assert the contract; return its error line."""
+    from sketchmesh.cli import main
+
+    before = snapshot(world["root"])
+    argv = [str(a) for a in case.argv(world)]
+    capsys.readouterr()
+    t0 = time.perf_counter()
+    try:
+        rc = main(argv)
+    except SystemExit as exc:  # argparse errors
+        rc = exc.code
+    seconds = time.perf_counter() - t0
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert rc not in (0, None), f"{case.id}: exit {rc}, stderr {err!r}"
+    assert len(lines) == 1 and "Traceback" not in err, f"{case.id}: expected one line, got {err!r}"
+    assert lines[0].startswith("sketchmesh") and ": error: " in lines[0], f"{case.id}: {lines[0]!r}"
+    assert case.needle in lines[0], f"{case.id}: {case.needle!r} not in {lines[0]!r}"
+    after = snapshot(world["root"])
+    added = sorted(set(after) - set(before))
+    changed = sorted(k for k in before if after.get(k) != before[k])
+    assert not added and not changed, f"{case.id}: left {added} / changed {changed}"
+    assert seconds < CASE_SECONDS, f"{case.id}: took {seconds:.1f} s"
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def engine_world(tmp_path_factory) -> dict:
+    root = tmp_path_factory.mktemp("sweep")
+    w = {"root": root, "img": write_images(root / "images")}
+    w["models"] = write_fixture_models(root / "models")
+    w["models-missing-one"] = root / "models_missing_one"
+    w["models-missing-one"].mkdir()
+    shutil.copy(w["models"] / C.GENERATOR_FILE, w["models-missing-one"] / C.GENERATOR_FILE)
+    w["models-swapped"] = root / "models_swapped"
+    w["models-swapped"].mkdir()
+    shutil.copy(w["models"] / C.GENERATOR_FILE, w["models-swapped"] / C.PREDICTOR_FILE)
+    shutil.copy(w["models"] / C.PREDICTOR_FILE, w["models-swapped"] / C.GENERATOR_FILE)
+    w["models-corrupt"] = root / "models_corrupt"
+    write_corrupt_model(w["models-corrupt"] / C.GENERATOR_FILE)
+    shutil.copy(w["models"] / C.PREDICTOR_FILE, w["models-corrupt"] / C.PREDICTOR_FILE)
+    w["afile"] = root / "afile"  # a regular file where a folder is needed: read-only even for root
+    w["afile"].write_text("I am a file\n")
+    w["out"] = root / "out"  # outputs that must never appear
+    return w
+
+
+def _infer(image: str, *extra, models: str = "models", out: str = "x.obj"):
+    return lambda w: ["infer", w["img"][image] if image in w["img"] else image, "-o", w["out"] / out,
+                      "--models", w[models], *extra]
+
+
+INFER_CASES = [
+    Case("truncated PNG", _infer("truncated"), "truncated.png: PNG file is truncated"),
+    Case("zero-byte PNG", _infer("zero-byte"), "zero.png: file is empty"),
+    Case("1x1 image", _infer("1x1"), "image is 1x1 pixels, too small"),
+    Case("20000x20000 image", _infer("20000x20000"), "image is 20000x20000 pixels, larger than the limit"),
+    Case("all ink", _infer("all-ink"), "all_ink.png: the sketch is blank"),
+    Case("all paper", _infer("all-paper"), "all_paper.png: the sketch is blank"),
+    Case("non-image with an image suffix", _infer("not-an-image"), "notes.png: not a supported image"),
+    Case("missing sketch file", lambda w: ["infer", w["root"] / "absent.png", "-o", w["out"] / "x.obj",
+                                           "--models", w["models"]], "absent.png: no such file"),
+    Case("model folder with one ONNX missing", _infer("good", models="models-missing-one"),
+         "no mesh_predictor.onnx in"),
+    Case("model folder with the ONNX files swapped", _infer("good", models="models-swapped"), "files swapped?"),
+    Case("corrupt ONNX", _infer("good", models="models-corrupt"), "generator.onnx: cannot load model"),
+    Case("model folder is a file", _infer("good", models="afile"), "is not a folder"),
+    Case("-o under a file", lambda w: ["infer", w["img"]["good"], "-o", w["afile"] / "x.obj", "--models", w["models"]],
+         "afile is a file, not a folder"),
+    Case("--report is a folder", lambda w: [*_infer("good")(w), "--report", w["root"] / "images"],
+         "images: is a folder, expected a file name"),
+    Case("-o without suffix", _infer("good", out="mesh"), "the file name has no suffix"),
+    Case("-o in /proc", lambda w: ["infer", w["img"]["good"], "-o", "/proc/sketchmesh/x.obj", "--models", w["models"]],
+         "cannot write in /proc"),
+    Case("--report under a file (mesh must not be left)", lambda w: [
+        *_infer("good")(w), "--report", w["afile"] / "r.json"], "--report"),
+    Case("--normals under a file (mesh must not be left)", lambda w: [
+        *_infer("good")(w), "--normals", w["afile"] / "n.png"], "afile is a file, not a folder"),
+    Case("--normals not a PNG", _infer("good", "--normals", "n.jpg"), "--normals must name a .png file"),
+    Case("bad flag value", _infer("good", "--subdivide", "9"), "--subdivide: must be in [0, 4], got 9"),
+    Case("non-numeric flag value", _infer("good", "--smooth", "lots"), "expected an integer, got 'lots'"),
+    Case("unknown flag", _infer("good", "--frobnicate"), "unrecognized arguments: --frobnicate"),
+]
+
+
+@pytest.mark.parametrize("case", INFER_CASES, ids=[c.id for c in INFER_CASES])
+def test_infer_bad_input(case, engine_world, capsys):
+    run_case(case, engine_world, capsys)
+
+
+@pytest.mark.parametrize("kind", ["16-bit", "cmyk", "palette", "alpha-only"])
+def test_infer_exotic_but_valid_images_give_the_same_mesh_as_the_plain_png(kind, engine_world, capsys, tmp_path):
+    """16-bit, CMYK, palette and alpha-only encodings of a drawing are not errors: same raster, same mesh."""
+    from engine.pipeline import to_raster
+    from sketchmesh.cli import main
+
+    np.testing.assert_array_equal(to_raster(engine_world["img"][kind]), to_raster(engine_world["img"]["good"]))
+    out = tmp_path / f"{kind}.obj"
+    assert main(["infer", str(engine_world["img"][kind]), "-o", str(out), "--models", str(engine_world["models"])]) == 0
+    assert out.stat().st_size > 0 and f"-> {out}" in capsys.readouterr().out
