@@ -233,3 +233,148 @@ def test_infer_exotic_but_valid_images_give_the_same_mesh_as_the_plain_png(kind,
     out = tmp_path / f"{kind}.obj"
     assert main(["infer", str(engine_world["img"][kind]), "-o", str(out), "--models", str(engine_world["models"])]) == 0
     assert out.stat().st_size > 0 and f"-> {out}" in capsys.readouterr().out
+
+
+# ----------------------------------------------------------------------------------------- training world
+
+
+def _write_dataset(root: Path, size: int = 256, small_size: int = 64, views: int = 2) -> Path:
+    """A tiny dataset in the real format (tests/synthetic_data.py), at any image size."""
+    import json
+
+    from synthetic_data import make_mesh, render_shape_arrays
+
+    from training.data.dataset import BuildSettings, shape_file, write_manifest, write_shape_file
+
+    settings = BuildSettings(size=size, small_size=small_size, num_azimuths=views)
+    for i, (cat, split) in enumerate([("blob", "train"), ("box", "train"), ("blob", "test")]):
+        sid = f"{cat}_{i:05d}"
+        arrays = render_shape_arrays(make_mesh(cat, i), views, size=size, small_size=small_size)
+        meta = {"category": cat, "shape_id": sid, "split": split, "source": "synthetic", "path": "", "index": i,
+                "settings": json.loads(settings.to_json())}
+        arrays["meta"] = np.array(json.dumps(meta, sort_keys=True))
+        write_shape_file(shape_file(root, cat, sid), arrays)
+    write_manifest(root, settings)
+    return root
+
+
+TINY_CONFIG = dict(batch=2, base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
+                   template_level=2, sobel_samples=64, augment_strength=0.0, device="cpu")
+TINY_FLAGS = ["--batch", "2", "--base-channels", "8", "--predictor-channels", "8", "--predictor-hidden", "32",
+              "--predictor-latent", "16", "--template-level", "2", "--sobel-samples", "64", "--augment-strength", "0",
+              "--quiet", "--threads", "2", "--val-every", "0", "--plot-every", "0", "--device", "cpu"]
+
+
+def _write_run(run: Path, data: Path, mode: str = "joint", **changes) -> Path:
+    """A run folder with one checkpoint of untrained tiny networks (no training: only the format matters)."""
+    from training.loop.checkpoint import save_checkpoint
+    from training.loop.config import TrainConfig
+    from training.loop.trainer import build_models, build_optimizers
+
+    cfg = TrainConfig(mode=mode, data_dir=str(data), out_dir=str(run), iters=1, **(TINY_CONFIG | changes))
+    models = build_models(cfg)
+    save_checkpoint(run, 1, cfg.to_json(), "test", models, build_optimizers(cfg, models))
+    return run
+
+
+@pytest.fixture(scope="module")
+def world(engine_world) -> dict:
+    """engine_world plus datasets, runs and meshes (needs torch)."""
+    pytest.importorskip("torch")
+    import json
+
+    w = dict(engine_world)
+    root = w["root"]
+    w["meshes"] = write_meshes(root / "meshes")
+    w["data"] = _write_dataset(root / "data")
+    w["data64"] = _write_dataset(root / "data64", size=64, small_size=64)
+    w["empty-folder"] = root / "empty_folder"
+    w["empty-folder"].mkdir()
+    w["empty-dataset"] = root / "empty_dataset"  # a manifest that lists nothing
+    w["empty-dataset"].mkdir()
+    manifest = json.loads((w["data"] / "manifest.json").read_text())
+    (w["empty-dataset"] / "manifest.json").write_text(json.dumps(manifest | {"shapes": [], "views": [],
+                                                                             "categories": []}))
+    w["half-written"] = root / "half_written"  # a shape file cut short: a build killed by a full disk
+    shutil.copytree(w["data"], w["half-written"])
+    victim = sorted((w["half-written"] / "shapes").rglob("*.npz"))[0]
+    victim.write_bytes(victim.read_bytes()[:1000])
+    w["no-manifest"] = root / "no_manifest"  # a build killed before its manifest
+    shutil.copytree(w["data"] / "shapes", w["no-manifest"] / "shapes")
+    w["run"] = _write_run(root / "run", w["data"])
+    w["mesh-run"] = _write_run(root / "mesh_run", w["data"], mode="mesh")
+    w["wide-run"] = _write_run(root / "wide_run", w["data"], mode="mesh", predictor_channels=16)
+    w["bad-config-run"] = _write_run(root / "bad_config_run", w["data"], mode="mesh")
+    ckpt = next((w["bad-config-run"] / "checkpoints").glob("*.pt"))  # weights of one config, config of another
+    import torch
+
+    state = torch.load(ckpt, weights_only=True)
+    state["config"] = json.dumps(json.loads(state["config"]) | {"predictor_hidden": 64})
+    torch.save(state, ckpt)
+    return w
+
+
+def _data(*extra):
+    return lambda w: ["data", "--out", w["out"] / "d", *extra]
+
+
+DATA_FLAGS = ["--no-progress", "--size", "32", "--small-size", "16", "--views", "1"]
+
+DATA_CASES = [
+    Case("10^9 shapes per category", _data("--shapes-per-category", "1000000000", "--views", "1"), "GB on disk"),
+    Case("10^9 views", _data("--views", "1000000000"), "GB of memory per shape"),
+    Case("10^6-pixel images", _data("--size", "1000000"), "1000000x1000000 need"),
+    Case("10^5 workers", _data("--workers", "100000"), "--workers: must be in [1, 256]"),
+    Case("elevation out of range", _data("--elevations", "95"), "elevation must be in (-90, 90)"),
+    Case("--out under a file", lambda w: ["data", "--out", w["afile"] / "d", "--categories", "chair"],
+         "afile is a file, not a folder"),
+    Case("--out is a file", lambda w: ["data", "--out", w["afile"], "--categories", "chair"],
+         "afile: is a file, expected a folder"),
+    Case("--out in /proc", lambda w: ["data", "--out", "/proc/sketchmesh", "--categories", "chair"],
+         "cannot write in /proc"),
+    Case("mesh source is a file", _data("--source", lambda w: f"meshes:{w['afile']}"),
+         "afile: is a file, expected a mesh folder"),
+    Case("mesh source missing", _data("--source", lambda w: f"meshes:{w['root'] / 'nowhere'}"),
+         "nowhere: mesh folder does not exist"),
+    Case("mesh with no faces", _data("--source", lambda w: f"meshes:{w['meshes']['no-faces']}", *DATA_FLAGS),
+         "flat.obj: mesh has no triangles"),
+    Case("mesh with NaN vertices", _data("--source", lambda w: f"meshes:{w['meshes']['nan-vertices']}", *DATA_FLAGS),
+         "nan.obj: mesh has NaN or infinite vertices"),
+    Case("truncated mesh", _data("--source", lambda w: f"meshes:{w['meshes']['truncated']}", *DATA_FLAGS),
+         "cut.ply: cannot read mesh"),
+    Case("non-mesh with a mesh suffix", _data("--source", lambda w: f"meshes:{w['meshes']['not-a-mesh']}", *DATA_FLAGS),
+         "photo.stl: mesh has no triangles"),
+    Case("preview of an empty folder", lambda w: ["data", "preview", w["empty-folder"], "-o", w["out"] / "p.png"],
+         "not a dataset folder (no manifest.json"),
+    Case("preview of a build killed before its manifest", lambda w: ["data", "preview", w["no-manifest"], "-o",
+                                                                     w["out"] / "p.png"], "not a dataset folder"),
+    Case("preview of a half-written dataset", lambda w: ["data", "preview", w["half-written"], "-o", w["out"] / "p.png"],
+         "cannot open shape file"),
+    Case("preview -o under a file", lambda w: ["data", "preview", w["data"], "-o", w["afile"] / "p.png"],
+         "afile is a file, not a folder"),
+    Case("samples -o under a file", lambda w: ["data", "samples", w["data"], "-o", w["afile"] / "s"],
+         "afile is a file, not a folder"),
+    Case("merge into a file", lambda w: ["data", "merge", w["afile"], w["data"]], "afile: is a file, expected a folder"),
+]
+
+
+def _resolve(argv: list, w: dict) -> list:
+    return [a(w) if callable(a) else a for a in argv]
+
+
+@pytest.mark.parametrize("case", DATA_CASES, ids=[c.id for c in DATA_CASES])
+def test_data_bad_input(case, world, capsys):
+    run_case(Case(case.id, lambda w: _resolve(case.argv(w), w), case.needle), world, capsys)
+
+
+def test_a_non_manifold_mesh_is_rendered_not_refused(world, capsys, tmp_path):
+    """ShapeNet is full of non-manifold meshes (edges shared by three faces, fins): they render fine."""
+    from sketchmesh.cli import main
+
+    src = tmp_path / "meshes" / "fins"
+    src.mkdir(parents=True)
+    (src / "fin.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 1 1 1\nv -1 -1 0.5\n"
+                                 "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\nf 1 2 5\nf 1 2 6\n")  # edge 1-2 has four faces
+    out = tmp_path / "d"
+    assert main(["data", "--out", str(out), "--source", f"meshes:{tmp_path / 'meshes'}", *DATA_FLAGS]) == 0
+    assert "1 shapes rendered" in capsys.readouterr().out and (out / "manifest.json").is_file()

@@ -24,7 +24,7 @@ import sys
 import time
 import warnings
 
-from engine.cliutil import one_line_errors, positive_int, unit_float
+from engine.cliutil import check_output_dir, check_output_file, int_in, one_line_errors, positive_int, unit_float
 from engine.errors import SketchmeshError
 
 
@@ -54,7 +54,7 @@ def _add_build_flags(p: argparse.ArgumentParser, required_out: bool) -> None:
                    help="elevations in degrees (default 30)")
     p.add_argument("--size", type=positive_int, default=256, help="sketch / normal image size (default 256)")
     p.add_argument("--small-size", type=positive_int, default=64, help="predictor target size (default 64)")
-    p.add_argument("--workers", type=positive_int, default=1, help="processes rendering shapes in parallel")
+    p.add_argument("--workers", type=int_in(1, 256), default=1, help="processes rendering shapes in parallel")
     p.add_argument("--shard", default=None, metavar="K/N", help="render only shard K of N (0 <= K < N)")
     p.add_argument("--seed", type=int, default=0, help="seed of the stored augmented sketches (default 0)")
     p.add_argument("--augment-strength", type=unit_float, default=0.0,
@@ -130,18 +130,45 @@ def cmd_build(args: argparse.Namespace) -> int:
     _require_torch()
     if not args.out:
         raise DataCommandError("missing --out DIR (the dataset folder to write)")
-    from training.data.dataset import BuildSettings, build_dataset, make_jobs, parse_shard
+    from training.data.dataset import (
+        BuildSettings,
+        build_dataset,
+        check_build_request,
+        make_jobs,
+        parse_shard,
+        parse_source,
+    )
 
+    # everything that can be checked is checked before any shape is rendered or any folder made
+    check_output_dir(args.out, "--out")
     shard = parse_shard(args.shard)
+    try:
+        settings = BuildSettings(size=args.size, small_size=args.small_size, num_azimuths=args.views,
+                                 elevations=tuple(args.elevations), augment_strength=args.augment_strength, seed=args.seed)
+        settings.render_settings()
+    except ValueError as exc:
+        raise DataCommandError(str(exc)) from None
+    if parse_source(args.source)[0] == "procedural":  # the job list itself can be too big to build
+        from training.data.shapes import CATEGORIES
+
+        n_categories = len(set(args.categories)) if args.categories else len(CATEGORIES)
+        n_shapes = (10 if args.shapes_per_category is None else args.shapes_per_category) * n_categories
+        check_build_request(args.out, -(-n_shapes // shard[1]), settings, args.workers)
     jobs = make_jobs(args.source, args.shapes_per_category, args.categories)
     if not jobs:
         raise DataCommandError(f"--source {args.source} has no shapes to render")
-    settings = BuildSettings(size=args.size, small_size=args.small_size, num_azimuths=args.views,
-                             elevations=tuple(args.elevations), augment_strength=args.augment_strength, seed=args.seed)
+    check_build_request(args.out, -(-len(jobs) // shard[1]), settings, args.workers)
     t0 = time.perf_counter()
     with _plain_warnings():
         summary = build_dataset(args.out, jobs, settings, workers=args.workers, shard=shard, progress=not args.no_progress)
     dt = time.perf_counter() - t0
+    if summary["shapes"] == 0:
+        failed = summary["failed"]
+        if not failed:
+            raise DataCommandError(f"shard {args.shard} of --source {args.source} has no shapes to render")
+        first = f"{failed[0][0]}: {failed[0][1]}"
+        what = first if len(failed) == 1 else f"all {len(failed)} failed, the first with {first}"
+        raise DataCommandError(f"no shape could be rendered from --source {args.source}; nothing written ({what})")
     print(f"{summary['rendered']} shapes rendered, {summary['skipped']} already complete, "
           f"{len(summary['failed'])} failed; {args.out} now holds {summary['shapes']} shapes / {summary['views']} views "
           f"({dt:.1f} s)")
@@ -151,6 +178,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 def cmd_merge(args: argparse.Namespace) -> int:
     from training.data.dataset import merge_datasets
 
+    check_output_dir(args.out, "OUT")
     s = merge_datasets(args.out, args.shards)
     print(f"merged {len(args.shards)} shards into {args.out}: {s['shapes']} shapes, {s['views']} views ({s['copied']} files linked/copied)")
     return 0
@@ -161,6 +189,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
 
     if not str(args.output).lower().endswith(".png"):
         raise DataCommandError(f"-o must name a .png file, got {args.output}")
+    check_output_file(args.output, "-o")
     h, w = write_contact_sheet(args.dir, args.output, rows=args.rows, views_per_shape=args.views_per_shape,
                                augment_strength=args.augment_strength, seed=args.seed)
     print(f"wrote {args.output} ({w}x{h})")
@@ -170,6 +199,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
 def cmd_samples(args: argparse.Namespace) -> int:
     from training.data.preview import write_samples
 
+    check_output_dir(args.output, "-o")
     written = write_samples(args.dir, args.output, split=args.split, per_category=args.per_category, view=args.view,
                             augment_strength=args.augment_strength, seed=args.seed)
     print(f"wrote {len(written)} sketches to {args.output}")
@@ -287,6 +317,8 @@ def format_bench_table(records: list[dict]) -> str:
 
 def cmd_bench_data(args: argparse.Namespace) -> int:
     _require_torch()
+    if args.json:
+        check_output_file(args.json, "--json")
     records = bench_data_records(args.views, args.size, tuple(args.faces), args.augment_strength)
     print(format_bench_table(records))
     print("ms columns are per view on one core (torch threads = 1); 'lines' = contour/crease/suggestive extraction "

@@ -12,6 +12,7 @@ interrupted run leaves no half-written file.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -160,6 +161,80 @@ class BuildSettings:
         return json.dumps(d, sort_keys=True)
 
 
+MIN_DISK_BYTES_PER_VIEW = 4096
+"""A lower bound of one view's share of a compressed shape file at 256 x 256 (procedural shapes
+take about 10 KB); scaled by the image area. A request whose lower bound exceeds the free disk
+space is refused before anything is rendered."""
+
+MEMORY_SHARE = 0.8
+"""Largest share of the available memory the shapes being rendered at once may take."""
+
+
+def available_memory_bytes() -> int | None:
+    """MemAvailable of /proc/meminfo (Linux), else free physical pages; None when unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def build_cost(n_shapes: int, settings: BuildSettings, workers: int = 1) -> dict[str, int]:
+    """What a build request will take, estimated before any work.
+
+    Returns:
+        dict: ``views`` (total), ``memory_per_shape`` (bytes of one shape's arrays while it is
+        rendered and compressed), ``memory`` (that times the shapes rendered at once) and
+        ``disk_min`` (a lower bound of the dataset's size on disk), all ints.
+    """
+    S, s = int(settings.size), int(settings.small_size)
+    n_views = int(settings.num_azimuths) * len(settings.elevations)
+    per_view = S * S * (1 + 3 + 1 + (1 if settings.augment_strength > 0 else 0)) + s * s * (12 + 1) + 16 * 8 + 16
+    per_shape = 2 * n_views * per_view + 64 * S * S  # arrays + their compressed copy + one view's render buffers
+    return {
+        "views": int(n_shapes) * n_views,
+        "memory_per_shape": per_shape,
+        "memory": per_shape * max(1, min(int(workers), int(n_shapes))),
+        "disk_min": int(n_shapes) * n_views * MIN_DISK_BYTES_PER_VIEW * S * S // (256 * 256),
+    }
+
+
+def check_build_request(out: str | os.PathLike, n_shapes: int, settings: BuildSettings, workers: int = 1) -> dict:
+    """Refuse, before any work, a build that cannot fit in memory or on disk. Returns :func:`build_cost`.
+
+    Raises:
+        DatasetError: naming the request, what it needs and what there is.
+    """
+    import shutil
+
+    from engine.fileio import nearest_existing
+
+    cost = build_cost(n_shapes, settings, workers)
+    n_views = int(settings.num_azimuths) * len(settings.elevations)
+    gb = 1024**3
+    memory = available_memory_bytes()
+    if memory is not None and cost["memory"] > MEMORY_SHARE * memory:
+        at_once = f" x {min(workers, n_shapes)} workers" if min(workers, n_shapes) > 1 else ""
+        raise DatasetError(
+            f"{n_views} views per shape at {settings.size}x{settings.size} need {cost['memory_per_shape'] / gb:,.1f} GB "
+            f"of memory per shape{at_once}, more than the {memory / gb:,.1f} GB available; "
+            "use fewer --views or --elevations, a smaller --size or fewer --workers")
+    folder = nearest_existing(out)
+    if folder.is_dir():
+        free = shutil.disk_usage(folder).free
+        if cost["disk_min"] > free:
+            raise DatasetError(
+                f"{n_shapes} shapes x {n_views} views need at least {cost['disk_min'] / gb:,.1f} GB on disk, "
+                f"but {folder} has {free / gb:,.1f} GB free; ask for fewer shapes or views")
+    return cost
+
+
 def _view_seed(seed: int, category: str, shape_id: str, view: int) -> list[int]:
     return [int(seed), zlib.crc32(f"{category}/{shape_id}".encode()), int(view)]
 
@@ -248,6 +323,10 @@ def build_dataset(out: str | os.PathLike, jobs: Sequence[Job], settings: BuildSe
                   shard: tuple[int, int] = (0, 1), progress: bool = True) -> dict:
     """Render the jobs of this shard into ``out`` and (re)write its manifest.
 
+    A shape that fails is skipped with a warning. Warnings wait for the first shape that renders:
+    if none does and the folder holds no earlier shape, nothing is written (no empty manifest, and
+    folders this call created are removed) and the caller gets the failures to report as one error.
+
     Args:
         out: dataset folder (created).
         jobs: all shapes (the shard takes every N-th starting at K).
@@ -257,41 +336,69 @@ def build_dataset(out: str | os.PathLike, jobs: Sequence[Job], settings: BuildSe
         progress: show a tqdm bar.
 
     Returns:
-        Summary dict: rendered, skipped (already complete), failed (list of (shape, reason)), views.
+        Summary dict: rendered, skipped (already complete), failed (list of (shape, reason)),
+        shapes and views (in the manifest; 0 when nothing was written).
     """
     from tqdm import tqdm
 
     root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
+    created = _missing_folders(root)
     k, n = shard
     mine = [j for idx, j in enumerate(jobs) if idx % n == k]
     todo = [j for j in mine if not _is_complete(shape_file(root, j.category, j.shape_id), settings)]
     failed: list[tuple[str, str]] = []
+    held: list[str] = []  # failure warnings, shown once some shape renders (else reported as one error)
     bar = tqdm(total=len(todo), desc=f"rendering shapes (shard {k}/{n})", unit="shape", disable=not progress)
     args = [(j, settings, str(root)) for j in todo]
+
+    done = [0]
+
+    def record(job: Job, err: str | None) -> None:
+        done[0] += 1
+        if err:
+            failed.append((f"{job.category}/{job.shape_id}", err))
+            held.append(f"skipping {job.category}/{job.shape_id}: {err}")
+        if len(failed) < done[0]:  # a shape rendered: from now on failures are shown as they come
+            for message in held:
+                warnings.warn(message, stacklevel=3)
+            held.clear()
+        bar.update(1)
+
     if workers > 1 and len(todo) > 1:
         import multiprocessing as mp
 
         ctx = mp.get_context("spawn")
         with ctx.Pool(workers, initializer=_worker_init) as pool:
             for job, err in pool.imap_unordered(_run_job, args):
-                if err:
-                    failed.append((f"{job.category}/{job.shape_id}", err))
-                    warnings.warn(f"skipping {job.category}/{job.shape_id}: {err}", stacklevel=2)
-                bar.update(1)
+                record(job, err)
     else:
         for a in args:
-            job, err = _run_job(a)
-            if err:
-                failed.append((f"{job.category}/{job.shape_id}", err))
-                warnings.warn(f"skipping {job.category}/{job.shape_id}: {err}", stacklevel=2)
-            bar.update(1)
+            record(*_run_job(a))
     bar.close()
+    rendered = len(todo) - len(failed)
+    if todo and rendered == 0 and len(todo) == len(mine):  # every shape failed, none was there before
+        if not (root / MANIFEST).exists():
+            for folder in [*sorted(root.glob(f"{SHAPES_DIR}/*"), reverse=True), root / SHAPES_DIR, *created]:
+                with contextlib.suppress(OSError):
+                    folder.rmdir()  # only empty folders go
+        return {"rendered": 0, "skipped": 0, "failed": failed, "shapes": 0, "views": 0}
+    for message in held:
+        warnings.warn(message, stacklevel=2)
     if failed:
         warnings.warn(f"{len(failed)} of {len(todo)} shapes failed and were skipped", stacklevel=2)
     manifest = write_manifest(root, settings)
-    return {"rendered": len(todo) - len(failed), "skipped": len(mine) - len(todo), "failed": failed,
+    return {"rendered": rendered, "skipped": len(mine) - len(todo), "failed": failed,
             "shapes": len(manifest["shapes"]), "views": len(manifest["views"])}
+
+
+def _missing_folders(path: Path) -> list[Path]:
+    """``path`` and its ancestors that do not exist yet, deepest first."""
+    missing = []
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    return missing
 
 
 def write_manifest(root: str | os.PathLike, settings: BuildSettings | None = None) -> dict:

@@ -178,7 +178,8 @@ def scan_shapenet(root: str | os.PathLike, categories: Sequence[str] | None = No
     """
     root = Path(root)
     if not root.is_dir():
-        raise MeshInputError(f"{root}: ShapeNet folder does not exist")
+        what = "is a file, expected a ShapeNet folder" if root.exists() else "ShapeNet folder does not exist"
+        raise MeshInputError(f"{root}: {what}")
     wanted = set(categories) if categories else set(SHAPENET_SYNSETS.values())
     unknown = wanted - set(SHAPENET_SYNSETS.values())
     if unknown:
@@ -216,7 +217,8 @@ def scan_mesh_folder(root: str | os.PathLike, category: str | None = None) -> li
     """
     root = Path(root)
     if not root.is_dir():
-        raise MeshInputError(f"{root}: mesh folder does not exist")
+        what = "is a file, expected a mesh folder" if root.exists() else "mesh folder does not exist"
+        raise MeshInputError(f"{root}: {what}")
     records = []
     for path in sorted(root.rglob("*")):
         if not path.is_file() or path.suffix.lower() not in MESH_SUFFIXES:
