@@ -10,7 +10,9 @@ Document (UTF-8 JSON)::
 Writes are atomic (engine.fileio). The autosave file lives in ``QStandardPaths
 AppDataLocation`` (or a folder given by the caller, as tests do) and is written a short
 debounce after each change, removed when the user saves or discards, and offered for
-restore on the next start when it is still there (a crash or a kill).
+restore on the next start when it is still there (a crash or a kill). Autosave writes and
+removals run in order on a thread of their own (:class:`app.jobs.JobQueue`), never on the UI
+thread; a background image is PNG-encoded once per layer, not once per autosave.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from __future__ import annotations
 import base64
 import json
 import os
+import threading
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +30,7 @@ from PySide6.QtGui import QImage
 
 from app.canvas import BackgroundLayer, ink_to_qimage, qimage_to_ink
 from app.history import SketchState
+from app.jobs import WAIT_MS, JobQueue
 from engine.errors import SketchInputError
 from engine.fileio import atomic_write_text
 from engine.strokes import Stroke
@@ -37,6 +42,21 @@ AUTOSAVE_NAME = "autosave" + SKETCH_SUFFIX
 AUTOSAVE_DEBOUNCE_MS = 400
 MAX_SKETCH_FILE_BYTES = 64 * 1024 * 1024
 """Refuse absurdly large sketch files instead of hanging on them."""
+
+
+_PNG_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_PNG_LOCK = threading.Lock()
+
+
+def _layer_png_base64(layer: BackgroundLayer) -> str:
+    """The layer's ink as base64 PNG, encoded once per (immutable) layer; any thread."""
+    with _PNG_LOCK:
+        hit = _PNG_CACHE.get(layer)
+    if hit is None:
+        hit = _png_base64(layer.ink)
+        with _PNG_LOCK:
+            _PNG_CACHE[layer] = hit
+    return hit
 
 
 def _png_base64(ink: np.ndarray) -> str:
@@ -64,7 +84,7 @@ def sketch_to_dict(state: SketchState, canvas_size: tuple[int, int]) -> dict:
         "strokes": [s.to_dict() for s in state.strokes],
         "background": None
         if not isinstance(bg, BackgroundLayer)
-        else {"rect": list(bg.rect), "png_base64": _png_base64(bg.ink)},
+        else {"rect": list(bg.rect), "png_base64": _layer_png_base64(bg)},
     }
 
 
@@ -146,6 +166,8 @@ class Autosaver(QObject):
         self._timer.setSingleShot(True)
         self._timer.setInterval(int(delay_ms))
         self._timer.timeout.connect(self.flush)
+        self._jobs = JobQueue("sketchmesh-autosave", self)
+        self._generation = 0  # bumped by discard(): writes queued before it are skipped
         self.write_count = 0
 
     def schedule(self, state: SketchState, canvas_size: tuple[int, int]) -> None:
@@ -155,34 +177,54 @@ class Autosaver(QObject):
 
     @property
     def pending(self) -> bool:
+        """A change not yet handed to the writer thread."""
         return self._pending is not None
 
     def flush(self) -> None:
-        """Write the pending state now (an empty sketch removes the file instead)."""
+        """Hand the pending state to the writer thread now (an empty sketch removes the file).
+
+        ``saved`` or ``failed`` follow when it is done; :meth:`wait` blocks until then.
+        """
         self._timer.stop()
         if self._pending is None:
             return
         state, size = self._pending
         self._pending = None
-        try:
+        generation, path = self._generation, self.path
+
+        def write() -> bool | None:
+            if generation != self._generation:
+                return None  # discarded while queued
             if state.is_empty:
-                self.path.unlink(missing_ok=True)
-            else:
-                write_sketch_file(self.path, state, size)
-                self.write_count += 1
-        except OSError as exc:
-            self.failed.emit(f"Autosave failed: {exc}")
+                path.unlink(missing_ok=True)
+                return False
+            write_sketch_file(path, state, size)
+            return True
+
+        self._jobs.submit(write, self._on_written, lambda msg: self.failed.emit(f"Autosave failed: {msg}"))
+
+    def _on_written(self, wrote: bool | None) -> None:
+        if wrote is None:
             return
+        if wrote:
+            self.write_count += 1
         self.saved.emit(str(self.path))
 
     def discard(self) -> None:
-        """Cancel any pending write and delete the autosave file (work saved or discarded)."""
+        """Cancel any pending write and delete the autosave file (work saved or discarded).
+
+        The deletion runs after any write already queued (:meth:`wait` blocks until done).
+        """
         self._timer.stop()
         self._pending = None
-        try:
-            self.path.unlink(missing_ok=True)
-        except OSError as exc:
-            self.failed.emit(f"Could not remove the autosave file: {exc}")
+        self._generation += 1
+        path = self.path
+        self._jobs.submit(lambda: path.unlink(missing_ok=True), None,
+                          lambda msg: self.failed.emit(f"Could not remove the autosave file: {msg}"))
+
+    def wait(self, timeout_ms: int = WAIT_MS) -> bool:
+        """Block until every queued write and removal has run."""
+        return self._jobs.wait(timeout_ms)
 
     def has_recovery(self) -> bool:
         """True when an autosave file from an earlier session exists."""

@@ -9,19 +9,25 @@ layer (:class:`BackgroundLayer`) placed in canvas coordinates that the user can 
 What the model sees (:meth:`SketchCanvas.model_input`): the stroke list when there is no
 background (the engine rasterises it with ``engine.preprocess.rasterize_strokes``), else the
 composite of background ink and strokes rendered at canvas resolution (:meth:`render_raster`)
-and normalised by ``engine.preprocess.preprocess_raster`` into the 256x256 framed input.
+and normalised by ``engine.preprocess.preprocess_raster`` into the 256x256 framed input. The
+app hands the worker thread a :class:`CanvasComposite` (an immutable description, from
+:meth:`SketchCanvas.composite_request`) and renders it there, so a large scan never costs the
+UI thread a composite.
 
-Rendering cost scales with what changed: committed strokes are cached in a pixmap that is
-rebuilt only when the sketch state or the widget size changes; while drawing, only the live
-stroke is painted on top.
+Rendering cost on the UI thread scales with what changed: committed strokes are cached in a
+pixmap; a new stroke is painted onto it, anything else (undo, erase, resize) rebuilds it;
+the background layer is drawn from an image tinted and scaled once per layer and size; while
+drawing, only the live stroke is painted on top.
 """
 
 from __future__ import annotations
 
+import threading
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from PySide6.QtCore import QEvent, QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QPointF, QRect, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
     QColor,
     QImage,
@@ -279,16 +285,117 @@ def paint_stroke(painter: QPainter, stroke: Stroke, color: QColor) -> None:
         painter.drawLine(QPointF(x0, y0), QPointF(x1, y1))
 
 
-def paint_background(painter: QPainter, layer: BackgroundLayer, color: QColor) -> None:
-    """Draw a background layer's ink (as ``color`` with ink as alpha) into its rect."""
+def background_image(layer: BackgroundLayer, color: QColor) -> QImage:
+    """A layer's ink as an RGBA image of ``color`` with the ink as alpha (full resolution)."""
     ink = layer.ink
     h, w = ink.shape
     rgba = np.empty((h, w, 4), dtype=np.uint8)
     rgba[..., 0], rgba[..., 1], rgba[..., 2] = color.red(), color.green(), color.blue()
     rgba[..., 3] = np.round(ink * 255.0).astype(np.uint8)
-    img = QImage(rgba.data, w, h, 4 * w, QImage.Format.Format_RGBA8888).copy()
+    return QImage(rgba.data, w, h, 4 * w, QImage.Format.Format_RGBA8888).copy()
+
+
+def _stroke_rect(stroke: Stroke) -> QRectF:
+    """Canvas rectangle a stroke's ink can cover (its points padded by the pen width)."""
+    lo, hi = stroke.points.min(axis=0), stroke.points.max(axis=0)
+    pad = stroke.width / 2.0 + 2.0
+    return QRectF(lo[0] - pad, lo[1] - pad, hi[0] - lo[0] + 2 * pad, hi[1] - lo[1] + 2 * pad)
+
+
+def _strokes_rect(strokes: list[Stroke]) -> QRectF | None:
+    """Union of :func:`_stroke_rect` over ``strokes`` (None for none), snapped outwards to pixels."""
+    if not strokes:
+        return None
+    r = _stroke_rect(strokes[0])
+    for st in strokes[1:]:
+        r = r.united(_stroke_rect(st))
+    return QRectF(r.toAlignedRect())
+
+
+def paint_background(painter: QPainter, layer: BackgroundLayer, color: QColor) -> None:
+    """Draw a background layer's ink (as ``color`` with ink as alpha) into its rect."""
     painter.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, True)
-    painter.drawImage(QRectF(*layer.rect), img)
+    painter.drawImage(QRectF(*layer.rect), background_image(layer, color))
+
+
+_SHOWN_BACKGROUNDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_SHOWN_LOCK = threading.Lock()
+
+
+def shown_background(layer: BackgroundLayer, color: QColor) -> QImage:
+    """The layer tinted and scaled once to its rect's size (cached per layer): what the canvas
+    draws on every rebuild of its pixmap, so a large scan is converted once, not per stroke."""
+    w, h = max(1, round(layer.rect[2])), max(1, round(layer.rect[3]))
+    key = (color.rgba(), w, h)
+    with _SHOWN_LOCK:
+        hit = _SHOWN_BACKGROUNDS.get(layer)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    img = background_image(layer, color).scaled(w, h, Qt.AspectRatioMode.IgnoreAspectRatio, Qt.TransformationMode.SmoothTransformation)
+    with _SHOWN_LOCK:
+        _SHOWN_BACKGROUNDS[layer] = (key, img)
+    return img
+
+
+def render_ink(
+    strokes: tuple[Stroke, ...] | list[Stroke],
+    background: BackgroundLayer | None,
+    canvas_size: tuple[int, int],
+    size: tuple[int, int],
+) -> np.ndarray:
+    """Background ink + strokes in black on white, the canvas scaled into ``size``.
+
+    Pure (a QImage, no widget): runs on any thread.
+
+    Args:
+        strokes: canvas-pixel strokes, drawn in order.
+        background: the background layer or None.
+        canvas_size: (width, height) of the canvas the coordinates refer to.
+        size: (width, height) of the output; stroke widths scale with it.
+
+    Returns:
+        (H, W) float32 in [0, 1], 1 = ink.
+    """
+    w, h = int(size[0]), int(size[1])
+    if w < 1 or h < 1:
+        raise ValueError(f"raster size must be positive, got {w}x{h}")
+    img = QImage(w, h, QImage.Format.Format_Grayscale8)
+    img.fill(QColor(255, 255, 255))
+    p = QPainter(img)
+    try:
+        p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+        p.scale(w / max(int(canvas_size[0]), 1), h / max(int(canvas_size[1]), 1))
+        if background is not None:
+            paint_background(p, background, QColor(0, 0, 0))
+        for s in strokes:
+            paint_stroke(p, s, QColor(0, 0, 0))
+    finally:
+        p.end()
+    return qimage_to_ink(img)
+
+
+@dataclass(frozen=True, eq=False)
+class CanvasComposite:
+    """What the model sees when the canvas has a background layer and strokes, not yet rendered.
+
+    Immutable (strokes and layer are read-only values), so it crosses to the worker thread,
+    which calls :meth:`render` (:func:`render_ink`) and frames the result.
+
+    Attributes:
+        strokes: the strokes, in drawing order (the live one last, if included).
+        background: the background layer.
+        canvas_size: (width, height) of the canvas.
+        size: (width, height) to render at (:meth:`SketchCanvas.composite_size`).
+    """
+
+    strokes: tuple[Stroke, ...]
+    background: BackgroundLayer
+    canvas_size: tuple[int, int]
+    size: tuple[int, int]
+
+    def render(self) -> np.ndarray:
+        """(H, W) float32 ink in [0, 1] at ``size``."""
+        return render_ink(self.strokes, self.background, self.canvas_size, self.size)
 
 
 # --------------------------------------------------------------------------------------
@@ -331,6 +438,7 @@ class SketchCanvas(QWidget):
         self._active_device: str | None = None  # "mouse", "tablet", "touch" while a gesture runs
         self._cache: QPixmap | None = None
         self._cache_key: tuple | None = None
+        self._cache_strokes: tuple[Stroke, ...] | None = None
 
     # ---- state -------------------------------------------------------------------------
     def sizeHint(self) -> QSize:  # noqa: N802 (Qt API)
@@ -478,25 +586,11 @@ class SketchCanvas(QWidget):
             (H, W) float32 in [0, 1], 1 = ink.
         """
         w, h = size if size is not None else (self.width(), self.height())
-        if w < 1 or h < 1:
-            raise ValueError(f"raster size must be positive, got {w}x{h}")
-        img = QImage(int(w), int(h), QImage.Format.Format_Grayscale8)
-        img.fill(QColor(255, 255, 255))
-        p = QPainter(img)
-        try:
-            p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
-            p.scale(int(w) / max(self.width(), 1), int(h) / max(self.height(), 1))
-            bg = self.background
-            if bg is not None:
-                paint_background(p, bg, QColor(0, 0, 0))
-            for s in self.strokes():
-                paint_stroke(p, s, QColor(0, 0, 0))
-            live = self._live_stroke() if include_live else None
-            if live is not None:
-                paint_stroke(p, live, QColor(0, 0, 0))
-        finally:
-            p.end()
-        return qimage_to_ink(img)
+        strokes = list(self.strokes())
+        live = self._live_stroke() if include_live else None
+        if live is not None:
+            strokes.append(live)
+        return render_ink(strokes, self.background, (self.width(), self.height()), (int(w), int(h)))
 
     def composite_size(self) -> tuple[int, int]:
         """(width, height) of the model-input composite: the canvas, enlarged so an opened image
@@ -535,6 +629,21 @@ class SketchCanvas(QWidget):
 
         return preprocess_raster(composite)
 
+    def composite_request(self, *, include_live: bool = False) -> list[Stroke] | np.ndarray | CanvasComposite | None:
+        """Like ``model_input(preprocess=False)``, but a composite of background and strokes is
+        returned undrawn, as a :class:`CanvasComposite` for the worker thread to render. The
+        UI thread only collects references: no pixels are touched."""
+        strokes = list(self.strokes())
+        live = self._live_stroke() if include_live else None
+        if live is not None:
+            strokes.append(live)
+        bg = self.background
+        if bg is None:
+            return strokes or None
+        if not strokes:
+            return bg.ink
+        return CanvasComposite(tuple(strokes), bg, (max(self.width(), 1), max(self.height(), 1)), self.composite_size())
+
     # ---- gestures ------------------------------------------------------------------------
     def _live_stroke(self) -> Stroke | None:
         if not self._live_points:
@@ -560,19 +669,39 @@ class SketchCanvas(QWidget):
             self._live_points.append((x, y))
             if self._live_pressure is not None:
                 self._live_pressure.append(1.0 if pressure is None else pressure)
-            self.update()
+            self.update(self._live_tail_rect())  # only the new piece: the rest is on screen already
             self.strokeProgress.emit()
         else:
             self._eraser_trail.append((x, y))
             self._erase_step()
-            self.update()
+
+    def _live_tail_rect(self) -> QRect:
+        """Widget rectangle the last piece of the live stroke can change (the smoothed path
+        between the last three points, padded by the pen width)."""
+        pts = np.asarray(self._live_points[-3:], dtype=np.float64)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        pad = self._brush_width / 2.0 + 3.0
+        return QRectF(lo[0] - pad, lo[1] - pad, hi[0] - lo[0] + 2 * pad, hi[1] - lo[1] + 2 * pad).toAlignedRect()
+
+    def _eraser_cursor_rect(self, x: float, y: float) -> QRect:
+        r = self._eraser_width / 2.0 + 3.0
+        return QRectF(x - r, y - r, 2 * r, 2 * r).toAlignedRect()
 
     def _erase_step(self) -> None:
-        trail = np.array(self._eraser_trail[-2:])
-        working, changed = erase_strokes(self._erase_working or (), trail, self._eraser_width / 2.0)
+        """Cut the strokes under the eraser's last move; repaint only what changed and the cursor."""
+        trail = self._eraser_trail[-2:]
+        before = self._erase_working or ()
+        working, changed = erase_strokes(before, np.array(trail), self._eraser_width / 2.0)
+        dirty = QRect()
+        for x, y in trail:
+            dirty = dirty.united(self._eraser_cursor_rect(x, y))
         if changed:
             self._erase_working = working
-            self._invalidate()
+            now, old = {id(st) for st in working}, {id(st) for st in before}
+            cut = _strokes_rect([st for st in before if id(st) not in now] + [st for st in working if id(st) not in old])
+            if cut is not None:
+                dirty = dirty.united(cut.toAlignedRect())
+        self.update(dirty)
 
     def _end(self) -> None:
         device, self._active_device = self._active_device, None
@@ -655,31 +784,67 @@ class SketchCanvas(QWidget):
 
     # ---- painting ------------------------------------------------------------------------
     def _invalidate(self) -> None:
-        self._cache_key = None
+        """Repaint; :meth:`_committed_pixmap` decides what of its cache is still valid."""
         self.update()
 
     def _committed_pixmap(self) -> QPixmap:
-        key = (self.width(), self.height(), id(self.state), id(self._erase_working), self._show_guide)
-        if self._cache is None or self._cache_key != key:
-            pm = QPixmap(max(self.width(), 1), max(self.height(), 1))
-            pm.fill(PAPER_COLOR)
-            p = QPainter(pm)
+        """The paper, guide, background and committed strokes, cached and updated incrementally.
+
+        Strokes only appended since the cache was made (a pen-up) are painted onto it; strokes
+        removed or replaced (an eraser pass, undo, redo) repaint only the rectangle they cover,
+        unless that is most of the canvas; a new size, background or guide rebuilds it.
+        """
+        strokes = self.strokes()
+        key = (self.width(), self.height(), self.background, self._show_guide)  # a layer compares by identity
+        done = self._cache_strokes
+        if self._cache is None or self._cache_key != key or done is None:
+            self._cache = QPixmap(max(self.width(), 1), max(self.height(), 1))
+            self._paint_committed(self._cache, strokes, None)
+            self._cache_key, self._cache_strokes = key, strokes
+            return self._cache
+        if done is strokes:
+            return self._cache
+        if len(strokes) >= len(done) and all(a is b for a, b in zip(done, strokes)):
+            p = QPainter(self._cache)  # appended: paint the new strokes on top
             try:
                 p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
-                if self._show_guide:
-                    x, y, w, h = guide_rect(self.width(), self.height())
-                    pen = QPen(GUIDE_COLOR, 1.0, Qt.PenStyle.DashLine)
-                    p.setPen(pen)
-                    p.drawRect(QRectF(x, y, w, h))
-                bg = self.background
-                if bg is not None:
-                    paint_background(p, bg, BACKGROUND_INK_COLOR)
-                for s in self.strokes():
-                    paint_stroke(p, s, INK_COLOR)
+                for st in strokes[len(done) :]:
+                    paint_stroke(p, st, INK_COLOR)
             finally:
                 p.end()
-            self._cache, self._cache_key = pm, key
+        else:
+            now = {id(st) for st in strokes}
+            before = {id(st) for st in done}
+            changed = [st for st in done if id(st) not in now] + [st for st in strokes if id(st) not in before]
+            dirty = _strokes_rect(changed)
+            if dirty is None or dirty.width() * dirty.height() > 0.5 * self.width() * self.height():
+                dirty = None  # most of the canvas: a full repaint costs no more
+            self._paint_committed(self._cache, strokes, dirty)
+        self._cache_strokes = strokes
         return self._cache
+
+    def _paint_committed(self, pm: QPixmap, strokes: tuple[Stroke, ...], clip: QRectF | None) -> None:
+        """Paint paper, guide, background and ``strokes`` into ``pm`` (only inside ``clip``)."""
+        p = QPainter(pm)
+        try:
+            if clip is not None:
+                p.setClipRect(clip)
+            p.fillRect(QRectF(pm.rect()) if clip is None else clip, PAPER_COLOR)
+            p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+            if self._show_guide:
+                x, y, w, h = guide_rect(self.width(), self.height())
+                p.setPen(QPen(GUIDE_COLOR, 1.0, Qt.PenStyle.DashLine))
+                p.setBrush(Qt.BrushStyle.NoBrush)
+                p.drawRect(QRectF(x, y, w, h))
+            bg = self.background
+            if bg is not None:
+                x, y, _, _ = bg.rect
+                p.drawImage(QPointF(round(x), round(y)), shown_background(bg, BACKGROUND_INK_COLOR))
+            for st in strokes:
+                if clip is None or _stroke_rect(st).intersects(clip):
+                    paint_stroke(p, st, INK_COLOR)
+        finally:
+            p.end()
 
     def paintEvent(self, event: QPaintEvent) -> None:  # noqa: N802 (Qt API)
         p = QPainter(self)

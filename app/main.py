@@ -10,6 +10,12 @@ def add_gui_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--open", metavar="SKETCH", help="open a sketch image at start")
     parser.add_argument("--screenshot", metavar="PNG", help="after inference, save a window screenshot and exit")
     parser.add_argument("--models", metavar="DIR", help="model folder to use instead of the bundled one")
+    parser.add_argument(
+        "--report",
+        metavar="JSON",
+        help="play a scripted session (open, 20 strokes, undo, redo, erase, views, export), "
+        "print the UI lag and per-stroke latency, write them to JSON and exit",
+    )
 
 
 def run_gui(args: argparse.Namespace) -> int:

@@ -12,14 +12,15 @@ headless ``--open SKETCH --screenshot OUT.png`` mode.
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QBuffer, QByteArray, QEventLoop, QIODevice, QPoint, QRect, QSize, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QImage, QKeySequence, QPainter, QPixmap
+from PySide6.QtCore import QBuffer, QByteArray, QEventLoop, QIODevice, Qt, QTimer, Signal
+from PySide6.QtGui import QAction, QActionGroup, QCloseEvent, QImage, QKeySequence, QPixmap
 from PySide6.QtWidgets import (
     QApplication,
     QDoubleSpinBox,
@@ -38,6 +39,7 @@ from PySide6.QtWidgets import (
 from app.autosave import SKETCH_SUFFIX, Autosaver, default_autosave_dir, read_sketch_file, write_sketch_file
 from app.canvas import TOOL_ERASER, TOOL_PEN, SketchCanvas, ink_to_qimage
 from app.history import SketchState
+from app.jobs import JobQueue
 from app.settings import MAX_BRUSH_WIDTH, MIN_BRUSH_WIDTH, AppSettings
 from app.viewport import VIEW_PRESETS, MeshViewport
 from app.worker import (
@@ -45,6 +47,7 @@ from app.worker import (
     CanvasRaster,
     EventLoopLatencyProbe,
     InferenceController,
+    rgb_to_qimage,
 )
 from engine.contract import GENERATOR_FILE, PREDICTOR_FILE
 from engine.errors import ModelError, SketchInputError, SketchmeshError
@@ -61,8 +64,16 @@ MESH_FILTERS = {
 }
 PANEL_SIZE = 148
 """Side of the model-input and normal-image thumbnails, in pixels."""
+THUMBNAIL_SIZE = PANEL_SIZE - 2
+"""Side the worker scales the thumbnails to (inside the panel's 1-px border)."""
 SCREENSHOT_TIMEOUT_S = 120.0
 """How long ``--screenshot`` waits for the mesh before giving up."""
+READY_TIMEOUT_S = 10.0
+"""How long :meth:`MainWindow.wait_until_ready` waits before the window is shown anyway."""
+GIL_SWITCH_INTERVAL_S = 0.001
+"""How long a background thread running Python may keep the UI thread waiting for the
+interpreter lock (Python's default is 5 ms; measured: the UI thread waited for the lock in
+about a sixth of its busy samples)."""
 
 EngineFactory = Callable[[Path], object]
 
@@ -95,16 +106,7 @@ def bundled_models_dir() -> Path:
     return Path(MODELS_DIR)
 
 
-def _rgb_to_qimage(rgb: np.ndarray) -> QImage:
-    """(H, W, 3) float in [0, 1] or uint8 -> RGB888 QImage (a copy)."""
-    a = np.asarray(rgb)
-    if a.ndim != 3 or a.shape[2] != 3:
-        raise ValueError(f"image must be (H, W, 3), got {a.shape}")
-    if a.dtype != np.uint8:
-        a = np.round(np.clip(np.nan_to_num(a.astype(np.float64)), 0.0, 1.0) * 255.0).astype(np.uint8)
-    a = np.ascontiguousarray(a)
-    h, w, _ = a.shape
-    return QImage(a.data, w, h, 3 * w, QImage.Format.Format_RGB888).copy()
+_rgb_to_qimage = rgb_to_qimage  # (H, W, 3) float in [0, 1] or uint8 -> RGB888 QImage
 
 
 def _png_bytes(image: QImage | QPixmap) -> bytes:
@@ -140,9 +142,10 @@ class ImagePanel(QLabel):
         self.has_image = False
 
     def set_image(self, image: QImage) -> None:
-        pm = QPixmap.fromImage(image).scaled(
-            PANEL_SIZE - 2, PANEL_SIZE - 2, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation
-        )
+        """Show ``image``, scaled down to fit unless it already fits (the worker's thumbnails do)."""
+        pm = QPixmap.fromImage(image)
+        if pm.width() > THUMBNAIL_SIZE or pm.height() > THUMBNAIL_SIZE:
+            pm = pm.scaled(THUMBNAIL_SIZE, THUMBNAIL_SIZE, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation)
         self.setPixmap(pm)
         self.has_image = True
 
@@ -163,10 +166,12 @@ class MainWindow(QMainWindow):
     Signals:
         meshUpdated(int): a fresh prediction was shown (request id).
         inferenceFailed(int, str): the newest request failed (request id, message).
+        exportFinished(str, str): a mesh export ended (path, error message or "").
     """
 
     meshUpdated = Signal(int)
     inferenceFailed = Signal(int, str)
+    exportFinished = Signal(str, str)
 
     def __init__(
         self,
@@ -229,7 +234,7 @@ class MainWindow(QMainWindow):
         sb.addPermanentWidget(self.model_label)
 
         # ---- inference
-        self.controller = InferenceController(None, 100 if debounce_ms is None else debounce_ms, self)
+        self.controller = InferenceController(None, 100 if debounce_ms is None else debounce_ms, self, thumbnail_size=THUMBNAIL_SIZE)
         self.controller.predictionReady.connect(self._on_prediction)
         self.controller.predictionFailed.connect(self._on_failure)
         self.controller.cleared.connect(self._on_cleared)
@@ -237,6 +242,10 @@ class MainWindow(QMainWindow):
         self.latency_probe = EventLoopLatencyProbe(10, self)
         self.last_lag_ms: float | None = None
         """Largest event-loop lateness measured during the last inference (ms)."""
+
+        self.jobs = JobQueue("sketchmesh-export", self)
+        """File writes the user asked for (mesh export), off the UI thread."""
+        self._exports_running = 0
 
         # ---- autosave
         self.autosaver: Autosaver | None = None
@@ -438,7 +447,8 @@ class MainWindow(QMainWindow):
         self._request_inference()
 
     def _model_input(self, include_live: bool = False) -> object | None:
-        src = self.canvas.model_input(include_live=include_live, preprocess=False)
+        """What the worker gets: strokes, a CanvasRaster or a CanvasComposite (rendered there)."""
+        src = self.canvas.composite_request(include_live=include_live)
         return CanvasRaster(src) if isinstance(src, np.ndarray) else src
 
     def _request_inference(self) -> None:
@@ -469,12 +479,13 @@ class MainWindow(QMainWindow):
     def _on_prediction(self, request_id: int, prediction: object) -> None:
         self._last_prediction = prediction
         self.viewport.set_mesh(prediction.mesh)
-        sketch = getattr(prediction, "sketch", None)
+        thumbs = self.controller.take_thumbnails(request_id)
+        sketch = thumbs.sketch if thumbs is not None else getattr(prediction, "sketch", None)
         if sketch is not None:
-            self.input_panel.set_image(ink_to_qimage(np.asarray(sketch)))
-        normals = getattr(prediction, "normals", None)
+            self.input_panel.set_image(sketch if isinstance(sketch, QImage) else ink_to_qimage(np.asarray(sketch)))
+        normals = thumbs.normals if thumbs is not None else getattr(prediction, "normals", None)
         if normals is not None:
-            self.normal_panel.set_image(_rgb_to_qimage(np.asarray(normals)))
+            self.normal_panel.set_image(normals if isinstance(normals, QImage) else _rgb_to_qimage(np.asarray(normals)))
         self.timing_label.setText(format_timings(dict(prediction.timings_ms), bool(getattr(prediction, "cached", False))))
         m = prediction.mesh
         self.show_message(f"Mesh: {m.num_vertices} vertices, {m.num_faces} faces")
@@ -624,20 +635,47 @@ class MainWindow(QMainWindow):
         return self.export_mesh_to(path)
 
     def export_mesh_to(self, path: str | os.PathLike) -> bool:
+        """Export the current mesh to ``path`` on a background thread (the suffix picks the format).
+
+        Returns False at once for nothing to export or an unsupported suffix; otherwise True,
+        and ``exportFinished(path, error)`` follows (the status bar, or a message box, says how
+        it went).
+        """
         if self._last_prediction is None:
             self.show_message("Nothing to export yet: draw a sketch first")
             return False
-        from engine.export import export_mesh  # noqa: PLC0415
+        from engine.export import export_mesh, supported_suffixes  # noqa: PLC0415
 
-        try:
-            export_mesh(self._last_prediction.mesh, path)
-        except SketchmeshError as exc:
-            self.show_message(f"Export failed: {exc}")
-            QMessageBox.warning(self, "Cannot export mesh", str(exc))
+        p = Path(path)
+        if p.suffix.lower() not in supported_suffixes():
+            msg = f"{p.name}: unsupported mesh format {p.suffix or '(none)'}; choose one of {', '.join(supported_suffixes())}"
+            self.show_message(f"Export failed: {msg}")
+            QMessageBox.warning(self, "Cannot export mesh", msg)
             return False
-        self.settings.last_export_dir = str(Path(path).parent)
-        self.show_message(f"Exported {Path(path).name}")
+        mesh = self._last_prediction.mesh  # immutable: safe to hand to the writer thread
+        self._exports_running += 1
+        self.show_message(f"Exporting {p.name}...")
+
+        def done(_result: object) -> None:
+            self._exports_running -= 1
+            self.settings.last_export_dir = str(p.parent)
+            self.show_message(f"Exported {p.name}")
+            self.exportFinished.emit(str(p), "")
+
+        def failed(message: str) -> None:
+            self._exports_running -= 1
+            self.show_message(f"Export failed: {message}")
+            if not self._closed:
+                QMessageBox.warning(self, "Cannot export mesh", message)
+            self.exportFinished.emit(str(p), message)
+
+        self.jobs.submit(lambda: export_mesh(mesh, p), done, failed)
         return True
+
+    @property
+    def export_pending(self) -> bool:
+        """A mesh export is still being written."""
+        return self._exports_running > 0
 
     def about(self) -> None:
         QMessageBox.about(
@@ -721,23 +759,54 @@ class MainWindow(QMainWindow):
         self.latency_probe.stop()
         self.controller.shutdown()
         self.viewport.close_plotter()
+        self.jobs.wait()  # an export or an autosave in progress is finished, not cut off
+        if self.autosaver is not None:
+            self.autosaver.wait()
+
+    def wait_until_ready(self, timeout_s: float = READY_TIMEOUT_S) -> bool:
+        """Before the first show: let the worker load the models and import what it needs, and
+        the render thread compile its shaders, so none of that can stall the UI once shown.
+        Returns False when it took longer than ``timeout_s`` (the window is usable anyway).
+
+        Then tunes the interpreter for a responsive UI thread (process-wide): every object
+        made so far (modules, Qt and VTK wrappers) is frozen out of the cyclic garbage
+        collector, whose full passes over them cost the UI thread tens of milliseconds at
+        unpredictable moments, and the lock switch interval drops to
+        :data:`GIL_SWITCH_INTERVAL_S`.
+        """
+        try:
+            return self._wait_until_ready(timeout_s)
+        finally:
+            gc.collect()
+            gc.freeze()
+            sys.setswitchinterval(min(sys.getswitchinterval(), GIL_SWITCH_INTERVAL_S))
+
+    def _wait_until_ready(self, timeout_s: float) -> bool:
+        loop = QEventLoop()
+        deadline = QTimer()
+        deadline.setSingleShot(True)
+        deadline.timeout.connect(loop.quit)
+        poll = QTimer()
+        poll.setInterval(5)
+        poll.timeout.connect(lambda: loop.quit() if self.is_ready else None)
+        if self.is_ready:
+            return True
+        deadline.start(int(timeout_s * 1000))
+        poll.start()
+        loop.exec()
+        poll.stop()
+        return self.is_ready
+
+    @property
+    def is_ready(self) -> bool:
+        """No model load in flight and the 3D view set up (or failed to set up)."""
+        return not self.controller.busy and self.viewport.ready
 
     # ------------------------------------------------------------------ screenshots
     def grab_with_viewport(self) -> QImage:
-        """The whole window as an image, with the VTK view composited in (render first)."""
-        pm = self.grab()
-        img = pm.toImage().convertToFormat(QImage.Format.Format_RGB888)
-        vtk = self.viewport.screenshot()  # (H, W, 3) uint8, rendered now
-        widget = self.viewport.plotter
-        top_left = widget.mapTo(self, QPoint(0, 0))
-        dpr = img.devicePixelRatio() or 1.0
-        target = QRect(QPoint(int(top_left.x() * dpr), int(top_left.y() * dpr)), QSize(int(widget.width() * dpr), int(widget.height() * dpr)))
-        p = QPainter(img)
-        try:
-            p.drawImage(target, _rgb_to_qimage(vtk))
-        finally:
-            p.end()
-        return img
+        """The whole window as an image, with a 3D view rendered just now."""
+        self.viewport.sync()
+        return self.grab().toImage().convertToFormat(QImage.Format.Format_RGB888)
 
     def save_screenshot(self, path: str | os.PathLike) -> None:
         atomic_write_bytes(path, _png_bytes(self.grab_with_viewport()))
@@ -790,6 +859,7 @@ def run_screenshot(sketch: str, out: str, models: str | None, timeout_s: float =
         if window.engine is None:
             raise ModelError(window.model_problem or "no models loaded")
         window.resize(1280, 760)
+        window.wait_until_ready()
         window.show()
         QApplication.processEvents()
         window.canvas.set_background_ink(ink)
@@ -829,19 +899,25 @@ def check_display(*, need_vtk_pixels: bool) -> None:
 
 def run(args) -> int:  # noqa: ANN001 (argparse.Namespace)
     """Entry point for ``sketchmesh`` with no subcommand (see app/main.py)."""
-    if args.screenshot and not args.open:
+    if args.screenshot and not args.open and not getattr(args, "report", None):
         raise SketchInputError("--screenshot needs --open SKETCH (the sketch to render)")
     if args.models and not Path(args.models).is_dir():
         raise ModelError(f"{args.models}: no such model folder")
     if args.open and not Path(args.open).is_file():
         raise SketchInputError(f"{args.open}: no such file")
-    check_display(need_vtk_pixels=bool(args.screenshot))
+    report = getattr(args, "report", None)
+    check_display(need_vtk_pixels=bool(args.screenshot or report))
     app = QApplication.instance() or QApplication([sys.argv[0]])
     app.setOrganizationName("Sketchmesh")
     app.setApplicationName("Sketchmesh")
+    if report:
+        from app.session import run_session  # noqa: PLC0415
+
+        return run_session(args.open, report, args.screenshot, args.models)
     if args.screenshot:
         return run_screenshot(args.open, args.screenshot, args.models)
     window = MainWindow(models_dir=args.models)
+    window.wait_until_ready()
     window.show()
     if args.open:
         window.open_path(args.open)

@@ -7,7 +7,10 @@ an increasing id and sends it through a queued signal. The worker skips requests
 superseded when it reaches them (so a burst of edits costs one inference, not one per edit)
 and answers with ``resultReady(request_id, Prediction)`` or ``errorOccurred(request_id,
 message)``; the controller forwards only the answer to the newest request. The GUI thread
-never calls ``engine.predict``.
+never calls ``engine.predict``, and never converts pixels for a result either: a canvas
+composite (:class:`app.canvas.CanvasComposite`) is rendered and framed on the worker, and the
+worker makes the two thumbnails the window shows (:class:`Thumbnails`, fetched with
+:meth:`InferenceController.take_thumbnails`).
 
 :class:`EventLoopLatencyProbe` measures how late a short repeating QTimer fires on the GUI
 thread: the UI's responsiveness while inference runs (a debug figure, and a test).
@@ -15,6 +18,8 @@ thread: the UI's responsiveness while inference runs (a debug figure, and a test
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -22,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from PySide6.QtCore import QElapsedTimer, QObject, Qt, QThread, QTimer, Signal, Slot
+from PySide6.QtGui import QImage
 
 from engine.errors import SketchmeshError
 
@@ -31,10 +37,15 @@ DEFAULT_DEBOUNCE_MS = 100
 LIVE_WHILE_DRAWING_MAX_MS = 120.0
 """Send requests while a stroke is still being drawn only if the last inference took less."""
 
+WORKER_NICE = int(os.environ.get("SKETCHMESH_WORKER_NICE", "10"))
+"""Nice value of the inference thread (Linux), inherited by the ONNX Runtime threads it starts:
+on a 2-core machine the UI and render threads then win the CPU whenever they need it, and
+inference takes the rest (0 turns it off)."""
+
 SHUTDOWN_WAIT_MS = 10_000
 """How long closing waits for an inference in progress to finish."""
 
-SketchInput = object  # list[Stroke] | (256, 256) float32 raster | CanvasRaster | path
+SketchInput = object  # list[Stroke] | (256, 256) float32 raster | CanvasRaster | CanvasComposite | path
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,11 +62,75 @@ class CanvasRaster:
     ink: np.ndarray
 
     def __post_init__(self) -> None:
-        a = np.array(self.ink, dtype=np.float32)
+        a = np.asarray(self.ink)
+        if a.dtype != np.float32 or a.flags.writeable:
+            a = np.array(a, dtype=np.float32)  # a private copy crosses the thread (read-only ones are shared)
         if a.ndim != 2:
             raise ValueError(f"CanvasRaster ink must be (H, W), got {a.shape}")
         a.setflags(write=False)
         object.__setattr__(self, "ink", a)
+
+
+@dataclass(frozen=True, eq=False)
+class Thumbnails:
+    """The window's two result thumbnails, made on the worker thread.
+
+    Attributes:
+        sketch: the generator's input, dark on white, Grayscale8, fitted into ``size``.
+        normals: the normal image, RGB888, fitted into ``size`` (None when not predicted).
+    """
+
+    sketch: QImage | None
+    normals: QImage | None
+
+
+def make_thumbnails(prediction: object, size: int) -> Thumbnails:
+    """Thumbnails of a prediction's ``sketch`` and ``normals`` (any thread: QImage only)."""
+    from app.canvas import ink_to_qimage  # noqa: PLC0415
+
+    def fit(img: QImage) -> QImage:
+        return img.scaled(size, size, Qt.AspectRatioMode.KeepAspectRatio, Qt.TransformationMode.SmoothTransformation)
+
+    sketch = getattr(prediction, "sketch", None)
+    normals = getattr(prediction, "normals", None)
+    return Thumbnails(
+        None if sketch is None else fit(ink_to_qimage(np.asarray(sketch))),
+        None if normals is None else fit(rgb_to_qimage(np.asarray(normals))),
+    )
+
+
+def rgb_to_qimage(rgb: np.ndarray) -> QImage:
+    """(H, W, 3) float in [0, 1] or uint8 -> RGB888 QImage (a copy)."""
+    a = np.asarray(rgb)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise ValueError(f"image must be (H, W, 3), got {a.shape}")
+    if a.dtype != np.uint8:
+        a = np.round(np.clip(np.nan_to_num(a.astype(np.float32)), 0.0, 1.0) * 255.0).astype(np.uint8)
+    a = np.ascontiguousarray(a)
+    h, w, _ = a.shape
+    return QImage(a.data, w, h, 3 * w, QImage.Format.Format_RGB888).copy()
+
+
+def warm_imports() -> None:
+    """Import what later steps import lazily (mesh export), so no first use pays for it: an
+    import on any thread holds the interpreter lock for tens of milliseconds at a time."""
+    import trimesh  # noqa: F401, PLC0415
+    import trimesh.exchange.gltf  # noqa: F401, PLC0415
+
+    import engine.export  # noqa: F401, PLC0415
+
+
+def lower_thread_priority(nice: int = WORKER_NICE) -> bool:
+    """Raise the calling thread's nice value (Linux: per thread; threads it starts inherit it).
+    Returns False where that is not possible (other systems, or refused)."""
+    if nice <= 0 or not sys.platform.startswith("linux") or not hasattr(os, "setpriority"):
+        return False
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, max(os.getpriority(os.PRIO_PROCESS, tid), nice))
+    except OSError:
+        return False
+    return True
 
 
 PRELOAD = object()
@@ -75,7 +150,7 @@ class InferenceWorker(QObject):
     """Runs ``engine.predict`` on its own thread; one request at a time, stale ones skipped.
 
     Signals:
-        resultReady(int, object): (request_id, engine.pipeline.Prediction).
+        resultReady(int, object): (request_id, (engine.pipeline.Prediction, Thumbnails | None)).
         errorOccurred(int, str): (request_id, one-line message).
         skipped(int): a request superseded before it started.
         loaded(int): a preload request (:data:`PRELOAD`) finished without error.
@@ -91,6 +166,8 @@ class InferenceWorker(QObject):
         self._latest = 0
         self._lock = threading.Lock()
         self._stopping = False
+        self.thumbnail_size: int | None = None
+        """When set, each result carries :class:`Thumbnails` of this side (set before starting)."""
         self.thread_ids: set[int] = set()
         """Threads ``predict`` ran on (tests check it never is the GUI thread)."""
 
@@ -117,6 +194,7 @@ class InferenceWorker(QObject):
                 load = getattr(engine, "load", None)
                 if load is not None:
                     load()
+                warm_imports()
             except SketchmeshError as exc:
                 self.errorOccurred.emit(request_id, str(exc))
             except Exception as exc:  # a broken model must not kill the worker
@@ -125,11 +203,14 @@ class InferenceWorker(QObject):
                 self.loaded.emit(request_id)
             return
         try:
-            if isinstance(sketch, CanvasRaster):
+            from app.canvas import CanvasComposite  # noqa: PLC0415
+
+            if isinstance(sketch, (CanvasRaster, CanvasComposite)):
                 from engine.preprocess import preprocess_raster  # noqa: PLC0415
 
-                sketch = preprocess_raster(sketch.ink)
+                sketch = preprocess_raster(sketch.ink if isinstance(sketch, CanvasRaster) else sketch.render())
             prediction = engine.predict(sketch, want_normals=True)
+            thumbs = None if self.thumbnail_size is None else make_thumbnails(prediction, self.thumbnail_size)
         except SketchmeshError as exc:
             self.errorOccurred.emit(request_id, str(exc))
         except MemoryError:
@@ -137,7 +218,7 @@ class InferenceWorker(QObject):
         except Exception as exc:  # never let a worker exception kill the thread or the app
             self.errorOccurred.emit(request_id, f"{type(exc).__name__}: {exc}")
         else:
-            self.resultReady.emit(request_id, prediction)
+            self.resultReady.emit(request_id, (prediction, thumbs))
 
 
 class InferenceController(QObject):
@@ -156,8 +237,16 @@ class InferenceController(QObject):
     busyChanged = Signal(bool)
     _request = Signal(int, object, object)
 
-    def __init__(self, engine: object | None = None, debounce_ms: int = DEFAULT_DEBOUNCE_MS, parent: QObject | None = None) -> None:
+    def __init__(
+        self,
+        engine: object | None = None,
+        debounce_ms: int = DEFAULT_DEBOUNCE_MS,
+        parent: QObject | None = None,
+        *,
+        thumbnail_size: int | None = None,
+    ) -> None:
         super().__init__(parent)
+        self._thumbs: dict[int, Thumbnails] = {}
         self._engine = engine
         self._next_id = 0
         self._latest_id = 0
@@ -176,7 +265,9 @@ class InferenceController(QObject):
         self._debounce.timeout.connect(self._fire)
         self._thread = QThread()
         self._thread.setObjectName("sketchmesh-inference")
+        self._thread.started.connect(lower_thread_priority, Qt.ConnectionType.DirectConnection)  # runs on the new thread
         self._worker = InferenceWorker()
+        self._worker.thumbnail_size = thumbnail_size
         self._worker.moveToThread(self._thread)
         self._request.connect(self._worker.process, Qt.ConnectionType.QueuedConnection)
         self._worker.resultReady.connect(self._on_result, Qt.ConnectionType.QueuedConnection)
@@ -296,11 +387,18 @@ class InferenceController(QObject):
         return fresh
 
     @Slot(int, object)
-    def _on_result(self, request_id: int, prediction: object) -> None:
+    def _on_result(self, request_id: int, result: object) -> None:
+        prediction, thumbs = result
         if self._finish(request_id):
+            if thumbs is not None:
+                self._thumbs = {request_id: thumbs}  # only the newest is ever asked for
             self.predictionReady.emit(request_id, prediction)
         else:
             self.dropped_count += 1
+
+    def take_thumbnails(self, request_id: int) -> Thumbnails | None:
+        """The worker-made thumbnails of a result (once; None without ``thumbnail_size``)."""
+        return self._thumbs.pop(request_id, None)
 
     @Slot(int, str)
     def _on_error(self, request_id: int, message: str) -> None:

@@ -394,8 +394,8 @@ def test_autosaver_debounces_writes_and_removes_file_for_empty_sketch(qtbot, tmp
     assert saver.load_recovery()[0].strokes[0].points.tolist() == st.strokes[0].points.tolist()
     assert not list((tmp_path / "auto").glob(".*.tmp"))  # atomic write left no temp file
     saver.schedule(SketchState(), (100, 100))
-    saver.flush()
-    assert not saver.has_recovery()
+    saver.flush()  # hands the work to the writer thread
+    assert saver.wait() and not saver.has_recovery()
 
 
 # ------------------------------------------------------------------ settings

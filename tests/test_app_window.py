@@ -83,9 +83,10 @@ def test_drawing_updates_mesh_normals_and_status_in_place(qtbot, make_window):
     w = make_window(eng)
     assert not w.viewport.has_mesh
     _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
-    poly = w.viewport.polydata
+    assert w.viewport.sync()  # the render thread took the mesh and rendered it
+    points = w.viewport._scene._points_np  # the buffer VTK reads; safe to look at while the renderer idles
     pred = w.last_prediction
-    np.testing.assert_array_equal(np.asarray(poly.points), pred.mesh.vertices)
+    np.testing.assert_array_equal(points, pred.mesh.vertices)
     assert w.normal_panel.has_image and w.input_panel.has_image
     status = w.status_text()
     assert "generator 1.0 ms" in status and "Model: " in status and "UI lag" in status
@@ -94,13 +95,14 @@ def test_drawing_updates_mesh_normals_and_status_in_place(qtbot, make_window):
     w.viewport.set_view("iso")
     cam = w.viewport.camera_position()
     _draw_and_wait(qtbot, w, line_points(60, 300, 300, 80))
-    assert w.viewport.polydata is poly and w.viewport.topology_changes == 1
-    assert w.viewport.camera_position() == cam
-    np.testing.assert_allclose(np.abs(np.asarray(poly.points)).max(), 0.5 * (0.2 + 0.1 * 2), rtol=1e-5)
+    assert w.viewport.camera_position() == cam  # (waits for the renderer)
+    assert w.viewport._scene._points_np is points and w.viewport.topology_changes == 1  # updated in place
+    np.testing.assert_allclose(np.abs(points).max(), 0.5 * (0.2 + 0.1 * 2), rtol=1e-5)
     # undo via the menu action re-infers; clearing empties the viewport without an error
     with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
         w.actions["undo"].trigger()
-    np.testing.assert_allclose(np.abs(np.asarray(poly.points)).max(), 0.5 * 0.3, rtol=1e-5)
+    assert w.viewport.sync()
+    np.testing.assert_allclose(np.abs(points).max(), 0.5 * 0.3, rtol=1e-5)
     w.actions["clear"].trigger()
     qtbot.waitUntil(lambda: not w.viewport.has_mesh, timeout=WAIT_MS)
     assert not w.normal_panel.has_image and "failed" not in w.status_text().lower()
@@ -115,8 +117,8 @@ def threading_safe(eng: FakeEngine) -> bool:
 def test_screenshot_shows_the_lit_mesh(qtbot, make_window, tmp_path):
     w = make_window(FakeEngine())
     blank = w.grab_with_viewport()
-    vp_pos = w.viewport.plotter.mapTo(w, QPoint(0, 0))
-    vw, vh = w.viewport.plotter.width(), w.viewport.plotter.height()
+    vp_pos = w.viewport.mapTo(w, QPoint(0, 0))
+    vw, vh = w.viewport.width(), w.viewport.height()
 
     def vp_region(img):
         return _qimage_to_array(img)[vp_pos.y() : vp_pos.y() + vh, vp_pos.x() : vp_pos.x() + vw]
@@ -140,9 +142,10 @@ def test_export_mesh_through_menu(qtbot, make_window, tmp_path, monkeypatch, suf
     _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
     target = tmp_path / "out" / "mesh"  # no suffix: the chosen filter supplies it
     monkeypatch.setattr(QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(target), MESH_FILTERS[suffix])))
-    w.actions["export_mesh"].trigger()
+    with qtbot.waitSignal(w.exportFinished, timeout=WAIT_MS) as done:
+        w.actions["export_mesh"].trigger()  # written on a background thread
     path = target.with_suffix(suffix)
-    assert path.is_file(), w.status_text()
+    assert done.args == [str(path), ""] and path.is_file(), w.status_text()
     loaded = trimesh.load(path, force="mesh", process=False)
     mesh = w.last_prediction.mesh
     assert len(loaded.faces) == mesh.num_faces
@@ -165,6 +168,11 @@ def test_export_without_mesh_and_export_errors_are_reported(qtbot, make_window, 
     _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
     assert not w.export_mesh_to(tmp_path / "mesh.xyz")
     assert dialogs.kinds() == ["warning"] and ".obj" in dialogs.calls[0][2]
+    dialogs.calls.clear()
+    (tmp_path / "blocker").write_text("a file where a folder should be")
+    with qtbot.waitSignal(w.exportFinished, timeout=WAIT_MS) as done:
+        assert w.export_mesh_to(tmp_path / "blocker" / "mesh.obj")  # accepted; the write fails later
+    assert done.args[1] and dialogs.kinds() == ["warning"] and "Export failed" in w.status_text()
 
 
 def test_open_corrupt_image_keeps_drawing_and_valid_image_becomes_background(qtbot, make_window, tmp_path, monkeypatch, dialogs):
@@ -354,21 +362,23 @@ def test_viewport_renders_only_when_visible_and_changed(qtbot, make_window):
     w = make_window(FakeEngine())
     vp = w.viewport
     _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
+    qtbot.waitUntil(lambda: vp.idle, timeout=WAIT_MS)
     n = vp.render_count
     vp.render_now()  # nothing changed: no render
-    assert vp.render_count == n
+    assert vp.idle and vp.render_count == n
     vp.hide()
     _draw_and_wait(qtbot, w, line_points(60, 300, 300, 80))
+    qtbot.wait(50)
     assert vp.render_count == n and vp.mesh_updates == 2  # updated data, no render while hidden
     vp.show()
-    qtbot.waitUntil(lambda: vp.render_count == n + 1, timeout=2000)
+    qtbot.waitUntil(lambda: vp.render_count == n + 1, timeout=5000)
     with pytest.raises(ValueError, match="preset"):
         vp.set_view("bottom")
     w.actions["wireframe"].trigger()
     assert vp.wireframe and w.settings.wireframe
-    assert vp._actor.GetProperty().GetRepresentation() == 1  # VTK_WIREFRAME
+    assert vp.sync() and vp.representation == 1  # VTK_WIREFRAME, as rendered
     w.actions["wireframe"].trigger()
-    assert vp._actor.GetProperty().GetRepresentation() == 2  # VTK_SURFACE
+    assert vp.sync() and vp.representation == 2  # VTK_SURFACE
 
 
 def test_live_updates_while_drawing_when_inference_is_fast(qtbot, make_window):
