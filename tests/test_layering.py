@@ -2,6 +2,7 @@
 folders of training/ import only the pipeline stages before them."""
 
 import ast
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -32,6 +33,27 @@ def test_fresh_interpreter_does_not_load_torch_or_training(code):
 def test_cli_parser_does_not_load_torch():
     """`sketchmesh --help` and `sketchmesh infer` must not pay for torch (training registers lazily)."""
     assert "torch" not in _loaded_after("import sketchmesh.cli; sketchmesh.cli.build_parser()")
+
+
+@pytest.mark.gui
+def test_app_run_with_the_bundled_models_does_not_load_torch(tmp_path):
+    """The whole app path of the README's launch command, in a fresh interpreter: window, bundled
+    models, inference and a screenshot, with torch installed (the test extras) but never imported."""
+    if not os.environ.get("DISPLAY"):
+        pytest.skip("needs a display (tests/conftest.py starts Xvfb when it is installed)")
+    sample = ROOT / "assets" / "samples" / "chair_chair_00018_v3.png"
+    shot = tmp_path / "shot.png"
+    code = (
+        "import sys\n"
+        "from sketchmesh.cli import main\n"
+        f"rc = main(['--open', {str(sample)!r}, '--screenshot', {str(shot)!r}])\n"
+        "print(rc, 'torch' in sys.modules)\n"
+    )
+    env = dict(os.environ, XDG_CONFIG_HOME=str(tmp_path / "cfg"), XDG_DATA_HOME=str(tmp_path / "data"))
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=env, timeout=180)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.split()[-2:] == ["0", "False"], done.stdout
+    assert shot.stat().st_size > 0
 
 
 def test_engine_does_not_load_qt():
