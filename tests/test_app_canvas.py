@@ -7,12 +7,13 @@ window is created here, so this file stays fast.
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
 from gui_helpers import draw_stroke, gui_isolation, line_points, make_stroke
 from PySide6.QtCore import QEvent, QPoint, QPointF, QSettings, Qt
-from PySide6.QtGui import QPointingDevice, QTabletEvent
+from PySide6.QtGui import QImage, QPointingDevice, QTabletEvent
 from PySide6.QtWidgets import QApplication
 
 from app.autosave import (
@@ -24,7 +25,9 @@ from app.autosave import (
 )
 from app.canvas import (
     TOOL_ERASER,
+    TOOL_PEN,
     BackgroundLayer,
+    CanvasComposite,
     SketchCanvas,
     erase_strokes,
     fit_rect,
@@ -420,3 +423,95 @@ def test_settings_round_trip_in_isolated_location(tmp_path):
     store.sync()
     assert AppSettings.load().brush_width == MAX_BRUSH_WIDTH
     assert QSettings  # imported for the isolation fixture's setPath
+
+
+# ------------------------------------------------------------------ UI-thread economy
+
+
+def _pixels(pm) -> np.ndarray:
+    img = pm.toImage().convertToFormat(QImage.Format.Format_RGB888)
+    h, w, bpl = img.height(), img.width(), img.bytesPerLine()
+    return np.frombuffer(img.constBits(), np.uint8, count=h * bpl).reshape(h, bpl)[:, : 3 * w].copy()
+
+
+def test_incremental_canvas_cache_matches_a_full_repaint(canvas):
+    """Appending, erasing, undoing and redoing update the cached pixmap in place, and the
+    result is what a full repaint gives, pixel for pixel."""
+    ink = np.zeros((100, 100), np.float32)
+    ink[10:90, 45:55] = 1.0
+    canvas.set_background_ink(ink)
+    pm = canvas._committed_pixmap()
+
+    def same_as_full_repaint() -> None:
+        incremental = _pixels(canvas._committed_pixmap())
+        assert canvas._committed_pixmap() is pm  # updated, not rebuilt
+        canvas._cache = None
+        full = _pixels(canvas._committed_pixmap())
+        canvas._cache, canvas._cache_strokes = pm, canvas.strokes()
+        np.testing.assert_array_equal(incremental, full)
+
+    for k in range(5):
+        draw_stroke(canvas, line_points(30 + 40 * k, 30, 60 + 30 * k, 200))
+        same_as_full_repaint()
+    canvas.set_tool(TOOL_ERASER)
+    canvas.set_eraser_width(10.0)
+    draw_stroke(canvas, line_points(20, 120, 280, 120))
+    assert canvas.history.current.label == "Erase"
+    same_as_full_repaint()
+    canvas.undo()
+    same_as_full_repaint()
+    canvas.redo()
+    same_as_full_repaint()
+    # a small cut repaints only its rectangle
+    clips = []
+    paint = canvas._paint_committed
+    canvas._paint_committed = lambda pm_, strokes, clip: clips.append(clip) or paint(pm_, strokes, clip)
+    canvas.set_tool(TOOL_PEN)
+    draw_stroke(canvas, line_points(250, 20, 290, 20))
+    canvas._committed_pixmap()
+    canvas.set_tool(TOOL_ERASER)
+    draw_stroke(canvas, line_points(270, 10, 270, 30))
+    canvas._committed_pixmap()
+    assert clips and clips[-1] is not None and clips[-1].width() < 60
+    same_as_full_repaint()
+
+
+def test_composite_request_is_rendered_off_the_widget_as_render_raster_does(canvas):
+    assert canvas.composite_request() is None
+    draw_stroke(canvas, line_points(40, 40, 200, 200))
+    assert isinstance(canvas.composite_request(), list)  # strokes only: the engine rasterises them
+    ink = np.zeros((100, 100), np.float32)
+    ink[10:90, 45:55] = 1.0
+    canvas.set_background_ink(ink)
+    req = canvas.composite_request()
+    assert isinstance(req, CanvasComposite) and req.size == canvas.composite_size()
+    expected = canvas.model_input(preprocess=False)
+    out = []
+    t = threading.Thread(target=lambda: out.append(req.render()))  # as the inference worker does
+    t.start()
+    t.join(10)
+    np.testing.assert_array_equal(out[0], expected)
+    canvas.clear_strokes()
+    assert canvas.composite_request() is canvas.background.ink  # the image alone, as loaded
+
+
+def test_autosave_writes_off_the_gui_thread_and_discard_wins_over_a_queued_write(qtbot, tmp_path, monkeypatch):
+    import app.autosave as autosave_module
+
+    threads = []
+    real_write = autosave_module.write_sketch_file
+
+    def spy(*a, **k):
+        threads.append(threading.get_ident())
+        return real_write(*a, **k)
+
+    monkeypatch.setattr(autosave_module, "write_sketch_file", spy)
+    saver = Autosaver(tmp_path / "auto", delay_ms=10_000)
+    saver.schedule(_state_with_background(), (100, 100))
+    with qtbot.waitSignal(saver.saved, timeout=5000):
+        saver.flush()
+    assert saver.has_recovery() and threads and threading.get_ident() not in threads
+    saver.schedule(_state_with_background(), (100, 100))
+    saver.flush()
+    saver.discard()  # queued after the write: the file is gone once both ran
+    assert saver.wait() and not saver.has_recovery()

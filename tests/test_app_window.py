@@ -15,15 +15,16 @@ import pytest
 import trimesh
 from gui_helpers import FakeEngine, draw_stroke, fake_factory, gui_isolation, line_points
 from onnx_fixtures import write_fixture_models
-from PySide6.QtCore import QPoint, Qt
-from PySide6.QtGui import QImage
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QImage, QWheelEvent
 from PySide6.QtTest import QTest
-from PySide6.QtWidgets import QFileDialog, QMessageBox
+from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
 
 from app.autosave import AUTOSAVE_NAME, read_sketch_file
 from app.settings import AppSettings
 from app.viewport import BACKGROUND_COLOR
 from app.window import MESH_FILTERS, MainWindow, no_models_message
+from engine.camera import DEFAULT_DISTANCE
 from engine.export import supported_suffixes
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -379,6 +380,39 @@ def test_viewport_renders_only_when_visible_and_changed(qtbot, make_window):
     assert vp.sync() and vp.representation == 1  # VTK_WIREFRAME, as rendered
     w.actions["wireframe"].trigger()
     assert vp.sync() and vp.representation == 2  # VTK_SURFACE
+
+
+def test_viewport_renders_on_its_own_thread_and_orbits_and_zooms_with_the_mouse(qtbot, make_window):
+    w = make_window(FakeEngine())
+    vp = w.viewport
+    _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
+    assert vp._scene.thread() is not QApplication.instance().thread()  # VTK never runs on the UI thread
+    pos0, focal0, _ = vp.camera_position()
+    c = vp.rect().center()
+    QTest.mousePress(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, c)
+    for dx in range(10, 90, 10):
+        QTest.mouseMove(vp, c + QPoint(dx, dx // 4))
+    QTest.mouseRelease(vp, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, c + QPoint(80, 20))
+    pos1, focal1, _ = vp.camera_position()
+    assert np.linalg.norm(np.subtract(pos1, pos0)) > 0.1  # orbited
+    np.testing.assert_allclose(np.linalg.norm(np.subtract(pos1, focal1)), np.linalg.norm(np.subtract(pos0, focal0)), rtol=1e-3)
+    wheel = QWheelEvent(QPointF(c), QPointF(vp.mapToGlobal(c)), QPoint(0, 0), QPoint(0, 120), Qt.MouseButton.NoButton,
+                        Qt.KeyboardModifier.NoModifier, Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(vp, wheel)
+    pos2, focal2, _ = vp.camera_position()
+    assert np.linalg.norm(np.subtract(pos2, focal2)) < np.linalg.norm(np.subtract(pos1, focal1))  # zoomed in
+    vp.reset_view()
+    np.testing.assert_allclose(vp.camera_position()[0], (0.0, 0.0, DEFAULT_DISTANCE), atol=1e-9)
+    assert vp.step_ms["mesh_upload"] and vp.render_ms  # the UI-thread and render-thread steps are measured
+
+
+def test_wait_until_ready_loads_models_and_shaders_before_the_window_shows(qtbot, tmp_path):
+    w = MainWindow(engine_factory=fake_factory(FakeEngine()), autosave=False, persist_settings=False)
+    try:
+        assert w.wait_until_ready() and w.is_ready and w.viewport.ready and not w.controller.busy
+    finally:
+        w.force_close()
+        w.deleteLater()
 
 
 def test_live_updates_while_drawing_when_inference_is_fast(qtbot, make_window):

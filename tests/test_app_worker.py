@@ -16,10 +16,13 @@ from gui_helpers import FakeEngine, gui_isolation, make_stroke
 from onnx_fixtures import write_fixture_models
 from PySide6.QtCore import QObject, QTimer, Signal
 
+from app.canvas import BackgroundLayer, CanvasComposite
+from app.jobs import JobQueue
 from app.worker import (
     CanvasRaster,
     EventLoopLatencyProbe,
     InferenceController,
+    lower_thread_priority,
 )
 from engine.errors import ModelError
 from engine.pipeline import SketchEngine
@@ -42,8 +45,8 @@ def dialogs(qapp, tmp_path, monkeypatch):
 def controller(qtbot):
     made = []
 
-    def make(engine, debounce_ms=20):
-        c = InferenceController(engine, debounce_ms)
+    def make(engine, debounce_ms=20, **kw):
+        c = InferenceController(engine, debounce_ms, **kw)
         made.append((c, engine))
         return c
 
@@ -246,3 +249,60 @@ def test_preload_loads_on_the_worker_and_reports_broken_models(qtbot, controller
         c.preload()
     assert blocker.args[1] == "mesh_predictor.onnx: not an ONNX model"
     assert not c.busy
+
+
+def test_composite_framing_and_thumbnails_happen_on_the_worker(qtbot, controller, tmp_path):
+    models = write_fixture_models(tmp_path / "models")
+    eng = SketchEngine(models, threads=1)
+    c = controller(eng, thumbnail_size=100)
+    ink = np.zeros((80, 120), np.float32)
+    ink[20:60, 30:34] = 1.0
+    comp = CanvasComposite((make_stroke([[20.0, 150.0], [260.0, 40.0]]),), BackgroundLayer(ink, (30.0, 20.0, 240.0, 160.0)),
+                           (300, 200), (300, 200))
+    with qtbot.waitSignal(c.predictionReady, timeout=30000) as blocker:
+        c.submit(comp)
+    rid, pred = blocker.args
+    np.testing.assert_array_equal(pred.sketch, preprocess_raster(comp.render()))
+    thumbs = c.take_thumbnails(rid)
+    assert thumbs.sketch.width() == 100 and thumbs.normals.width() == 100  # made on the worker, fitted
+    assert c.take_thumbnails(rid) is None  # handed out once
+
+
+def test_job_queue_runs_in_order_off_the_gui_thread_and_reports_errors(qtbot, tmp_path):
+    q = JobQueue("test-jobs")
+    ran, threads, results, errors = [], set(), [], []
+
+    def job(i):
+        threads.add(threading.get_ident())
+        time.sleep(0.005 * (5 - i))  # later jobs are quicker: order must still hold
+        ran.append(i)
+        return i * i
+
+    for i in range(5):
+        q.submit(lambda i=i: job(i), results.append, errors.append)
+    q.submit(lambda: (tmp_path / "missing" / "x.txt").write_text("x"), results.append, errors.append)
+    q.submit(lambda: 1 / 0, results.append, errors.append)
+    assert q.wait(10_000)
+    qtbot.waitUntil(lambda: q.pending == 0, timeout=5000)
+    assert ran == [0, 1, 2, 3, 4] and results == [0, 1, 4, 9, 16]
+    assert threading.get_ident() not in threads
+    assert "No such file" in errors[0] and errors[1].startswith("ZeroDivisionError")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice values are Linux's")
+def test_lower_thread_priority_affects_only_the_calling_thread():
+    import os
+
+    main_nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    seen = []
+
+    def run():
+        seen.append(lower_thread_priority(7))
+        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+
+    t = threading.Thread(target=run)
+    t.start()
+    t.join(5)
+    assert seen[0] is True and seen[1] >= 7
+    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == main_nice
+    assert lower_thread_priority(0) is False
