@@ -132,6 +132,11 @@ def check_output_dir(path: str | os.PathLike, what: str = "") -> Path:
     return p
 
 
+def _one_line(exc: BaseException) -> str:
+    """The message on one line (torch's load_state_dict errors, for one, span several)."""
+    return " ".join(str(exc).split())
+
+
 def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse.Namespace) -> int:
     """Run a command function; turn errors into one stderr line and an exit code.
 
@@ -145,7 +150,7 @@ def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse
     except SketchmeshError as exc:
         if debug:
             raise
-        print(f"sketchmesh: error: {exc}", file=sys.stderr)
+        print(f"sketchmesh: error: {_one_line(exc)}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("sketchmesh: interrupted", file=sys.stderr)
@@ -159,5 +164,6 @@ def run_guarded(func: Callable[[argparse.Namespace], int | None], args: argparse
     except Exception as exc:  # last resort: one line, not a traceback
         if debug:
             raise
-        print(f"sketchmesh: error: {type(exc).__name__}: {exc} (rerun with --debug for the traceback)", file=sys.stderr)
+        print(f"sketchmesh: error: {type(exc).__name__}: {_one_line(exc)} (rerun with --debug for the traceback)",
+              file=sys.stderr)
         return 1

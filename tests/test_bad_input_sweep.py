@@ -378,3 +378,100 @@ def test_a_non_manifold_mesh_is_rendered_not_refused(world, capsys, tmp_path):
     out = tmp_path / "d"
     assert main(["data", "--out", str(out), "--source", f"meshes:{tmp_path / 'meshes'}", *DATA_FLAGS]) == 0
     assert "1 shapes rendered" in capsys.readouterr().out and (out / "manifest.json").is_file()
+
+
+def _train(mode: str = "mesh", data: str = "data", *extra):
+    return lambda w: ["train", mode, "--data", w[data], "--out", w["out"] / "run", "--iters", "1", *TINY_FLAGS, *extra]
+
+
+TRAIN_CASES = [
+    Case("normals on a 64-px dataset", _train("normals", "data64"), "holds 64x64 sketches, but the normals run"),
+    Case("--data is a file", _train("mesh", "afile"), "afile: is a file, expected a dataset folder"),
+    Case("--data missing", lambda w: _train()(w)[:3] + [w["root"] / "nowhere"] + _train()(w)[4:], "nowhere: does not exist"),
+    Case("empty dataset folder", _train("mesh", "empty-folder"), "not a dataset folder (no manifest.json"),
+    Case("dataset with no shapes", _train("mesh", "empty-dataset"), "the train split has no shapes"),
+    Case("half-written dataset", _train("mesh", "half-written"), "is cut short or corrupt"),
+    Case("dataset killed before its manifest", _train("mesh", "no-manifest"), "not a dataset folder"),
+    Case("--out under a file", lambda w: ["train", "mesh", "--data", w["data"], "--out", w["afile"] / "run", *TINY_FLAGS],
+         "afile is a file, not a folder"),
+    Case("resume a checkpoint of another configuration", lambda w: [
+        "train", "mesh", "--data", w["data"], "--out", w["wide-run"], "--iters", "2", *TINY_FLAGS],
+        "the config changed (predictor_channels: checkpoint 16 vs now 8)"),
+    Case("--init-mesh from another configuration", _train("mesh", "data", "--init-mesh", lambda w: w["wide-run"]),
+         "its predictor was trained with another configuration (predictor_channels 16 there, 8 here)"),
+    Case("--init-normals from a mesh run", _train("normals", "data", "--init-normals", lambda w: w["mesh-run"]),
+         "it has no generator to initialise from"),
+    Case("--init-mesh missing", _train("mesh", "data", "--init-mesh", lambda w: w["root"] / "nowhere"),
+         "--init-mesh", ),
+    Case("10^9 batch", _train("mesh", "data", "--batch", "1000000000"), "GB of memory"),
+    Case("10^9-wide predictor", _train("mesh", "data", "--predictor-hidden", "1000000000"), "GB of memory"),
+    Case("10^9 extra views", _train("mesh", "data", "--extra-views", "1000000000"), "have only 2 views"),
+    Case("10^5 loader workers", _train("mesh", "data", "--num-workers", "100000"), "--num-workers must be at most 256"),
+    Case("non-numeric --iters", _train("mesh", "data", "--iters", "many"), "--iters: invalid int value: 'many'"),
+    Case("negative learning rate", _train("mesh", "data", "--lr-mesh", "-1"), "lr_mesh must be finite and > 0"),
+    Case("NaN loss weight", _train("mesh", "data", "--lambda-s", "nan"), "lambda_s must be finite and >= 0"),
+    Case("unknown mode", lambda w: ["train", "sculpt", "--data", w["data"], "--out", w["out"] / "run"],
+         "invalid choice: 'sculpt'"),
+]
+
+EVAL_CASES = [
+    Case("--json under a file", lambda w: ["eval", w["run"], "--data", w["data"], "--quiet", "--json", w["afile"] / "e.json"],
+         "--json"),
+    Case("--out under a file", lambda w: ["eval", w["run"], "--data", w["data"], "--quiet", "--out", w["afile"] / "ev"],
+         "afile is a file, not a folder"),
+    Case("run is a file", lambda w: ["eval", w["afile"], "--data", w["data"], "--quiet"], "is a file, expected a run folder"),
+    Case("run missing", lambda w: ["eval", w["root"] / "nowhere", "--data", w["data"], "--quiet"],
+         "run folder does not exist"),
+    Case("--data is a file", lambda w: ["eval", w["run"], "--data", w["afile"], "--quiet"], "expected a dataset folder"),
+    Case("empty dataset", lambda w: ["eval", w["run"], "--data", w["empty-dataset"], "--quiet"],
+         "the test split has no shapes"),
+    Case("half-written dataset", lambda w: ["eval", w["run"], "--data", w["half-written"], "--quiet",
+                                            "--split", "train"], "is cut short or corrupt"),
+    Case("checkpoint of another configuration", lambda w: ["eval", w["bad-config-run"], "--data", w["data"], "--quiet",
+                                                            "--gt-normals"], "weights do not fit"),
+    Case("10^5 voxel resolution", lambda w: ["eval", w["run"], "--data", w["data"], "--voxel-resolution", "100000"],
+         "--voxel-resolution: must be in [4, 256]"),
+    Case("augment strength out of range", lambda w: ["eval", w["run"], "--data", w["data"], "--augment-strength", "7"],
+         "--augment-strength: must be a finite number in [0.0, 1.0]"),
+]
+
+EXPORT_CASES = [
+    Case("-o under a file", lambda w: ["export", w["run"], "-o", w["afile"] / "models"], "afile is a file, not a folder"),
+    Case("-o is a file", lambda w: ["export", w["run"], "-o", w["afile"]], "is a file, expected a folder"),
+    Case("run is a file", lambda w: ["export", w["afile"], "-o", w["out"] / "m"], "is a file, expected a run folder"),
+    Case("run with no checkpoint", lambda w: ["export", w["empty-folder"], "-o", w["out"] / "m"], "has no checkpoint"),
+    Case("checkpoint of another configuration", lambda w: ["export", w["bad-config-run"], "-o", w["out"] / "m"],
+         "predictor weights do not fit"),
+    Case("bad --quantize", lambda w: ["export", w["run"], "-o", w["out"] / "m", "--quantize", "int4"],
+         "invalid choice: 'int4'"),
+]
+
+
+@pytest.mark.parametrize("case", TRAIN_CASES + EVAL_CASES + EXPORT_CASES,
+                         ids=[f"train: {c.id}" for c in TRAIN_CASES] + [f"eval: {c.id}" for c in EVAL_CASES]
+                         + [f"export: {c.id}" for c in EXPORT_CASES])
+def test_train_eval_export_bad_input(case, world, capsys):
+    run_case(Case(case.id, lambda w: _resolve(case.argv(w), w), case.needle), world, capsys)
+
+
+def test_the_sweep_is_wide():
+    """At least 60 bad inputs over the five commands (the app adds its own in test_app_bad_input.py)."""
+    cases = INFER_CASES + DATA_CASES + TRAIN_CASES + EVAL_CASES + EXPORT_CASES
+    assert len(INFER_CASES) >= 20 and len(DATA_CASES) >= 15 and len(TRAIN_CASES) >= 15
+    assert len(EVAL_CASES) >= 8 and len(EXPORT_CASES) >= 5 and len(cases) >= 60
+
+
+def test_a_run_that_fails_before_its_first_checkpoint_leaves_no_run_folder(world, capsys, monkeypatch):
+    """An error the checks cannot foresee (here: inside the first step) still leaves no header-only run."""
+    import training.loop.trainer as trainer
+    from sketchmesh.cli import main
+
+    def broken_step(self, batch, it):
+        raise ValueError("Expected input of size 256, got 64 (an internal error)")
+
+    monkeypatch.setattr(trainer.Trainer, "train_step", broken_step)
+    before = snapshot(world["root"])
+    rc = main([str(a) for a in _train()(world)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1 and "ValueError: Expected input of size 256" in err[0]
+    assert snapshot(world["root"]) == before and not (world["out"] / "run").exists()

@@ -87,3 +87,12 @@ def test_run_guarded_names_the_file_of_an_os_error(capsys, monkeypatch):
     monkeypatch.delenv("SKETCHMESH_DEBUG", raising=False)
     rc = run_guarded(_raise(PermissionError(13, "Permission denied", "/x/out.obj")), argparse.Namespace(debug=False))
     assert rc == 1 and capsys.readouterr().err == "sketchmesh: error: /x/out.obj: Permission denied\n"
+
+
+def test_run_guarded_puts_a_multi_line_message_on_one_line(capsys, monkeypatch):
+    from engine.errors import ModelError
+
+    monkeypatch.delenv("SKETCHMESH_DEBUG", raising=False)
+    exc = ModelError("weights do not fit: Error(s) in loading state_dict:\n\tsize mismatch for w")
+    assert run_guarded(_raise(exc), argparse.Namespace(debug=False)) == 2
+    assert capsys.readouterr().err == "sketchmesh: error: weights do not fit: Error(s) in loading state_dict: size mismatch for w\n"

@@ -11,8 +11,9 @@ import argparse
 import dataclasses
 import os
 import sys
+from pathlib import Path
 
-from engine.cliutil import run_guarded
+from engine.cliutil import check_output_dir, int_in, one_line_errors, run_guarded, unit_float
 from engine.errors import SketchmeshError
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
@@ -21,6 +22,13 @@ _EXPLICIT = {"mode", "data_dir", "out_dir"}
 
 class ConfigError(SketchmeshError):
     """A training flag has an invalid value."""
+
+
+MAX_NUM_WORKERS = 256
+"""Most DataLoader worker processes a run may ask for."""
+
+TRAIN_MEMORY_SHARE = 0.8
+"""Largest share of the available memory the weights, gradients, optimizer state and one batch may take."""
 
 
 def _add_config_flags(parser: argparse.ArgumentParser) -> None:
@@ -63,6 +71,105 @@ def config_from_args(args: argparse.Namespace):
         raise ConfigError(str(exc)) from None
 
 
+def _is_main_rank() -> bool:
+    return os.environ.get("RANK", "0") == "0"
+
+
+INIT_FIELDS = {
+    "generator": ("base_channels",),
+    "predictor": ("template_level", "predictor_channels", "predictor_hidden", "predictor_latent"),
+}
+"""Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
+
+
+def _check_init_run(run: str, flag: str, role: str, cfg) -> None:
+    """The run an --init-* flag names has a checkpoint whose ``role`` network fits this configuration."""
+    from training.loop.checkpoint import require_checkpoint
+    from training.loop.config import TrainConfig
+
+    state = require_checkpoint(run)
+    try:
+        saved = TrainConfig.from_json(state["config"])
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"{flag} {run}: its checkpoint carries an unusable config ({exc})") from None
+    if role not in state["models"]:
+        raise ConfigError(f"{flag} {run}: a {saved.mode} run, it has no {role} to initialise from")
+    diffs = [f"{k} {getattr(saved, k)} there, {getattr(cfg, k)} here" for k in INIT_FIELDS[role]
+             if getattr(saved, k) != getattr(cfg, k)]
+    if diffs:
+        raise ConfigError(f"{flag} {run}: its {role} was trained with another configuration ({'; '.join(diffs)})")
+
+
+def _parameter_count(cfg) -> int:
+    """Parameters of the networks ``cfg`` trains, counted on the meta device (nothing allocated).
+
+    ``nn.init.normal_`` is skipped there: on meta tensors it goes through torch's Python
+    reference ops, whose first use imports torch._dynamo (6 s); the values are never used.
+    Returns 0 when the networks cannot be built on the meta device (the memory check then only
+    counts the batch).
+    """
+    from unittest import mock
+
+    import torch
+
+    from training.loop.trainer import build_models
+
+    try:
+        with torch.device("meta"), mock.patch.object(torch.nn.init, "normal_", lambda t, *a, **k: t):
+            models = build_models(cfg)
+    except Exception:  # noqa: BLE001 - a guard against absurd sizes must not stop a sane run
+        return 0
+    return sum(p.numel() for m in models.values() for p in m.parameters())
+
+
+def preflight_train(cfg) -> None:
+    """Check a training request before anything is built or written (torch is imported).
+
+    The dataset (folder, manifest, every shape file of the train split, image sizes against the
+    config), the run folder and the runs to initialise from, and the memory the weights,
+    gradients, optimizer state and one batch will take against the available memory.
+
+    Raises:
+        SketchmeshError: naming the flag and the problem.
+    """
+    from training.data.dataset import available_memory_bytes, check_dataset
+    from training.loop.checkpoint import check_run_folder
+
+    if cfg.num_workers > MAX_NUM_WORKERS:
+        raise ConfigError(f"--num-workers must be at most {MAX_NUM_WORKERS}, got {cfg.num_workers}")
+    check_output_dir(cfg.out_dir, "--out")
+    for flag, run, role, used in (("--init-normals", cfg.init_normals, "generator", cfg.uses_generator),
+                                  ("--init-mesh", cfg.init_mesh, "predictor", cfg.uses_predictor)):
+        if run:
+            check_run_folder(run, flag)
+            if used:
+                _check_init_run(run, flag, role, cfg)
+    manifest = check_dataset(cfg.data_dir, "train", cfg.categories or None, "--data")
+    settings = manifest.get("settings") or {}
+    size, small = int(settings.get("size", 256)), int(settings.get("small_size", 64))
+    if cfg.uses_generator and size != cfg.sketch_size:
+        raise ConfigError(f"--data {cfg.data_dir} holds {size}x{size} sketches, but the {cfg.mode} run's generator "
+                          f"takes {cfg.sketch_size}x{cfg.sketch_size} (--sketch-size); build the data with --size "
+                          f"{cfg.sketch_size}")
+    if cfg.uses_predictor and small != cfg.render_size:
+        raise ConfigError(f"--data {cfg.data_dir} holds {small}x{small} predictor targets, but the {cfg.mode} run "
+                          f"renders at {cfg.render_size}x{cfg.render_size} (--render-size); use --render-size {small} "
+                          f"or build the data with --small-size {cfg.render_size}")
+    views = min((int(r.get("num_views", 1)) for r in manifest["shapes"]), default=1)
+    if cfg.extra_views > max(views - 1, 1):
+        raise ConfigError(f"--extra-views {cfg.extra_views}: the shapes of {cfg.data_dir} have only {views} views")
+    params = _parameter_count(cfg)
+    k = 1 + cfg.extra_views
+    item = 4 * (cfg.sketch_size**2 * 5 + cfg.render_size**2 * 4 * k) + 8 * 16 * k
+    need = 16 * params + 2 * cfg.batch * item  # weights, gradients, two optimizer moments (float32); a batch and its copy
+    memory = available_memory_bytes()
+    if memory is not None and need > TRAIN_MEMORY_SHARE * memory:
+        gb = 1024**3
+        raise ConfigError(f"this configuration needs at least {need / gb:,.1f} GB of memory ({params:,} parameters, "
+                          f"batches of {cfg.batch}), more than the {memory / gb:,.1f} GB available; use smaller widths "
+                          "or --batch")
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     from training._torch import require_torch
@@ -70,10 +177,26 @@ def _cmd_train(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
+    from engine.fileio import nearest_existing
+    from training.loop.checkpoint import checkpoint_paths, remove_stale_checkpoint_files
     from training.loop.trainer import train
 
-    last = train(cfg, resume=args.resume, progress=not args.quiet)
-    if os.environ.get("RANK", "0") != "0":  # under torchrun only rank 0 reports
+    preflight_train(cfg)
+    run = Path(os.path.abspath(cfg.out_dir))
+    base = nearest_existing(run)
+    created = None if base == run else base / run.relative_to(base).parts[0]  # the top folder this run will make
+    if _is_main_rank():  # a write killed midway (a SIGKILL, a full disk) may have left its temporary file
+        remove_stale_checkpoint_files(run)
+    try:
+        last = train(cfg, resume=args.resume, progress=not args.quiet)
+    except Exception:
+        # a run that failed before its first checkpoint is no run: leave no folder with a header-only log
+        if created is not None and _is_main_rank() and created.is_dir() and not checkpoint_paths(run):
+            import shutil
+
+            shutil.rmtree(created, ignore_errors=True)
+        raise
+    if not _is_main_rank():  # under torchrun only rank 0 reports
         return 0
     if last:
         print("final: " + "  ".join(f"{k}={v:.4g}" for k, v in last.items()))
@@ -99,7 +222,13 @@ def _cmd_export(args: argparse.Namespace) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     from training.export.to_onnx import export_run
+    from training.loop.checkpoint import check_run_folder
 
+    check_run_folder(args.run)
+    for flag, run in (("--generator-run", args.generator_run), ("--predictor-run", args.predictor_run)):
+        if run:
+            check_run_folder(run, flag)
+    check_output_dir(args.output, "-o")
     reports = export_run(args.run, args.output, generator_run=args.generator_run,
                          predictor_run=args.predictor_run, quantize=args.quantize)
     for r in reports:
@@ -108,6 +237,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
         print(f"parity inputs: {reports[0].parity_inputs}")
     print(f"exported {len(reports)} model(s) to {args.output}: torch vs ONNX Runtime parity within tolerance")
     return 0
+
+
+_threads = int_in(0, 256)
+
+MAX_VOXEL_RESOLUTION = 256
+"""Largest --voxel-resolution of eval (256^3 voxels per mesh is already slow)."""
 
 
 def register(commands, bench) -> None:
@@ -123,9 +258,10 @@ def register(commands, bench) -> None:
     p.add_argument("--resume", action=argparse.BooleanOptionalAction, default=True,
                    help="continue from RUN's last checkpoint (default); --no-resume refuses to touch an existing run")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
+    p.add_argument("--threads", type=_threads, default=0, help="torch CPU threads (0: torch's default)")
     _add_config_flags(p)
     p.set_defaults(func=_cmd_train)
+    one_line_errors(p)
 
     p = commands.add_parser(
         "eval", help="evaluate a run on the test split (voxel IoU, Chamfer-L1, normal consistency, silhouette IoU)",
@@ -135,18 +271,19 @@ def register(commands, bench) -> None:
     p.add_argument("--split", default="test", choices=("train", "val", "test"))
     p.add_argument("--json", metavar="PATH", help="write the results as JSON here")
     p.add_argument("--out", metavar="DIR", help="folder for the markdown table and figure (default RUN/eval)")
-    p.add_argument("--augment-strength", type=float, default=0.0, help="sketch augmentation of the test sketches")
+    p.add_argument("--augment-strength", type=unit_float, default=0.0, help="sketch augmentation of the test sketches")
     p.add_argument("--gt-normals", action="store_true",
                    help="feed the predictor the ground-truth normal images instead of the generator's")
     p.add_argument("--generator-run", metavar="RUN", help="take the generator from this run (default: RUN)")
     p.add_argument("--baseline-run", metavar="RUN", action="append", default=[],
                    help="also evaluate this run (e.g. the silhouette-only lambda_n = 0 run); repeatable")
     p.add_argument("--no-retrieval", action="store_true", help="skip the nearest-training-sample retrieval baseline")
-    p.add_argument("--max-samples", type=int, default=0, help="evaluate at most this many test samples (0: all)")
-    p.add_argument("--voxel-resolution", type=int, default=32)
-    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="evaluate at most this many test samples (0: all)")
+    p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)
+    p.add_argument("--threads", type=_threads, default=0)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_eval)
+    one_line_errors(p)
 
     p = commands.add_parser("export", help="export a run to the engine's ONNX models (with a parity check)")
     p.add_argument("run", metavar="RUN")
@@ -155,13 +292,14 @@ def register(commands, bench) -> None:
                    help="int8: dynamic int8 quantisation of the mesh predictor; int8-all: of both networks")
     p.add_argument("--generator-run", metavar="RUN", help="take the generator from this run (default: RUN)")
     p.add_argument("--predictor-run", metavar="RUN", help="take the mesh predictor from this run (default: RUN)")
-    p.add_argument("--threads", type=int, default=0)
+    p.add_argument("--threads", type=_threads, default=0)
     p.set_defaults(func=_cmd_export)
+    one_line_errors(p)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Standalone entry point with only these three commands (same error handling as sketchmesh)."""
-    parser = argparse.ArgumentParser(prog="python -m training.cli.train")
+    parser = one_line_errors(argparse.ArgumentParser(prog="python -m training.cli.train"))
     parser.add_argument("--debug", action="store_true")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     register(commands, None)

@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from engine.errors import ModelError, SketchmeshError
-from engine.fileio import atomic_write_bytes, atomic_write_text
+from engine.errors import SketchmeshError
+from engine.fileio import atomic_write_bytes
 from engine.mesh import Mesh
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
@@ -354,6 +354,11 @@ def markdown_table(result: dict) -> str:
 
 def bar_chart(result: dict, path: str | Path) -> None:
     """Grouped bars of voxel IoU per category and method (PNG, atomic)."""
+    atomic_write_bytes(path, bar_chart_png(result))
+
+
+def bar_chart_png(result: dict) -> bytes:
+    """The PNG bytes of :func:`bar_chart`."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -377,7 +382,7 @@ def bar_chart(result: dict, path: str | Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    return buf.getvalue()
 
 
 def _json_safe(x):
@@ -391,11 +396,28 @@ def _json_safe(x):
 
 
 def evaluate_cli(args: argparse.Namespace) -> int:
-    """The ``sketchmesh eval`` command (see :mod:`training.cli.train`)."""
+    """The ``sketchmesh eval`` command (see :mod:`training.cli.train`).
+
+    Every input and output location is checked before the evaluation runs; the table, the JSON
+    files and the chart are then written all or nothing.
+    """
+    from engine.cliutil import check_output_dir, check_output_file
+    from engine.fileio import StagedWrites
+    from training.data.dataset import check_dataset
+    from training.loop.checkpoint import check_run_folder
+
     if args.max_samples < 0:
         raise EvaluationError(f"--max-samples must be >= 0, got {args.max_samples}")
-    if not Path(args.run).is_dir():
-        raise ModelError(f"run folder {args.run} does not exist")
+    check_run_folder(args.run)
+    for flag, runs in (("--generator-run", [args.generator_run] if args.generator_run else []),
+                       ("--baseline-run", args.baseline_run)):
+        for run in runs:
+            check_run_folder(run, flag)
+    check_dataset(args.data, args.split, what="--data")
+    out = Path(args.out) if args.out else Path(args.run) / "eval"
+    check_output_dir(out, "--out")
+    if args.json:
+        check_output_file(args.json, "--json")
     result = evaluate(
         args.run, args.data, args.split, gt_normals=args.gt_normals, generator_run=args.generator_run,
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
@@ -403,14 +425,14 @@ def evaluate_cli(args: argparse.Namespace) -> int:
     )
     table = markdown_table(result)
     print(table)
-    out = Path(args.out) if args.out else Path(args.run) / "eval"
     stem = f"eval_{args.split}"
     text = json.dumps(_json_safe(result), indent=2, sort_keys=True)
-    atomic_write_text(out / f"{stem}.md", table)
-    atomic_write_text(out / f"{stem}.json", text)
-    bar_chart(result, out / f"{stem}.png")
-    if args.json:
-        atomic_write_text(args.json, text)
+    with StagedWrites() as staged:
+        staged.add(out / f"{stem}.md", table)
+        staged.add(out / f"{stem}.json", text)
+        staged.add(out / f"{stem}.png", bar_chart_png(result))
+        if args.json:
+            staged.add(args.json, text)
     print(f"wrote {out / (stem + '.md')}, {out / (stem + '.json')}, {out / (stem + '.png')}"
           + (f" and {args.json}" if args.json else "") + f" in {result['seconds']:.1f} s")
     return 0

@@ -38,7 +38,7 @@ import torch
 
 from engine import contract
 from engine.errors import ModelError
-from engine.fileio import atomic_write_bytes
+from engine.fileio import StagedWrites
 from engine.icosphere import TEMPLATE_RADIUS
 from training.loop.config import TrainConfig
 
@@ -276,8 +276,9 @@ def export_models(
     if failed:
         raise ModelError("ONNX Runtime does not reproduce torch: " + "; ".join(
             f"{r.role} max abs error {r.max_abs_error:.3g} > {r.tolerance:.0e}" for r in failed))
-    for path, data, _ in pending:
-        atomic_write_bytes(path, data)
+    with StagedWrites() as staged:  # both models or neither: never a folder with one ONNX file
+        for path, data, _ in pending:
+            staged.add(path, data)
     return [r for _, _, r in pending]
 
 

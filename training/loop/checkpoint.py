@@ -13,7 +13,9 @@ A checkpoint is a plain dict of tensors and primitive types so it loads with
 
 Each file is written to a temporary sibling, fsynced and renamed (:mod:`engine.fileio`), so an
 interrupted write leaves the previous checkpoints intact; a load that finds the newest file
-corrupt falls back to the previous one.
+corrupt falls back to the previous one. The temporary file of a write killed midway
+(``.ckpt_XXXXXXXX.pt.*.tmp``, as big as a checkpoint) is deleted by the next write, and by
+``sketchmesh train`` when it resumes (:func:`remove_stale_checkpoint_files`).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import numpy as np
 import torch
 
 from engine.errors import ModelError
-from engine.fileio import atomic_open, atomic_write_text
+from engine.fileio import atomic_open, atomic_write_text, remove_stale_temporaries
 
 CHECKPOINT_FORMAT = 1
 CHECKPOINT_DIR = "checkpoints"
@@ -102,6 +104,7 @@ def save_checkpoint(
         "extra": dict(extra or {}),
     }
     path = Path(run_dir) / CHECKPOINT_DIR / f"ckpt_{int(iteration):08d}.pt"
+    remove_stale_checkpoint_files(run_dir)
     with atomic_open(path, "wb") as fh:
         torch.save(state, fh)
     atomic_write_text(
@@ -115,6 +118,16 @@ def save_checkpoint(
     for old in checkpoint_paths(run_dir)[keep:]:
         old.unlink(missing_ok=True)
     return path
+
+
+def remove_stale_checkpoint_files(run_dir: str | Path) -> list[Path]:
+    """Delete what writes killed midway left in a run folder (checkpoint, config and log temporaries).
+
+    Only the process that writes the run may call this (rank 0 of the training run). Returns the
+    files removed.
+    """
+    run = Path(run_dir)
+    return remove_stale_temporaries(run / CHECKPOINT_DIR, "ckpt_*.pt") + remove_stale_temporaries(run)
 
 
 def load_checkpoint_file(path: str | Path, map_location: str | torch.device = "cpu") -> dict:
@@ -151,11 +164,19 @@ def load_latest_checkpoint(run_dir: str | Path, map_location: str | torch.device
     return None
 
 
+def check_run_folder(run: str | Path, what: str = "RUN") -> Path:
+    """A run folder given as input exists and is a folder; ModelError naming ``what`` otherwise."""
+    p = Path(run)
+    if not p.exists():
+        raise ModelError(f"{what} {p}: run folder does not exist")
+    if not p.is_dir():
+        raise ModelError(f"{what} {p}: is a file, expected a run folder")
+    return p
+
+
 def require_checkpoint(run_dir: str | Path, map_location: str | torch.device = "cpu") -> dict:
     """Like :func:`load_latest_checkpoint` but a run with no checkpoint raises ModelError."""
-    run = Path(run_dir)
-    if not run.is_dir():
-        raise ModelError(f"run folder {run} does not exist")
+    run = check_run_folder(run_dir, "run")
     state = load_latest_checkpoint(run, map_location)
     if state is None:
         raise ModelError(f"run folder {run} has no checkpoint (expected {run / CHECKPOINT_DIR}/ckpt_*.pt)")
