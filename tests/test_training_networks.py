@@ -182,6 +182,26 @@ def test_predictor_clamp_bound_is_linear_inside_and_bounded_outside():
         MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, local_bound="sigmoid")
 
 
+def test_predictor_clamp_after_bounds_the_smoothed_offsets_not_the_raw_ones():
+    """clamp-after: offsets are exactly S @ (scale * raw) inside the bound (the smoother's full range
+    is reachable) and never beyond +-2 * scale, even for huge raw outputs."""
+    p = MeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, smoothing=16.0, local_bound="clamp-after")
+    p.eval()
+    x = torch.rand(2, 3, 64, 64)
+    with torch.no_grad():
+        raw = p.local_head(p.decoder(p.encoder(x)) * p.head_gain).view(2, -1, 3)
+        want = p.offset_smoother @ (p.local_scale * raw)
+        torch.testing.assert_close(p(x)[0], want)
+        # a uniform raw output of 1.9 is a pure translation mode (rows of S sum to 1): kept whole,
+        # where the bound-before-smoothing variants cap every mode of the raw output at the bound
+        p.local_head.weight.zero_()
+        p.local_head.bias.fill_(1.9)
+        torch.testing.assert_close(p(x)[0], torch.full((2, p.num_vertices, 3), 1.9 * p.local_scale), rtol=1e-5, atol=1e-5)
+        p.local_head.bias.fill_(1e6)
+        local = p(x)[0]
+    assert torch.isfinite(local).all() and local.abs().max() <= 2.0 * p.local_scale + 1e-6
+
+
 # ---------------------------------------------------------------------------- generator losses
 
 

@@ -323,6 +323,16 @@ def test_full_run_with_a_bad_step_completes_and_counts_it(data_dir, tmp_path):
     assert load_latest_checkpoint(run)["iteration"] == 3
 
 
+def test_max_minutes_stops_the_run_with_a_checkpoint_and_resume_continues(data_dir, tmp_path):
+    run = tmp_path / "timed"
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(run), iters=50, max_minutes=1e-9, **TINY)
+    Trainer(cfg, progress=False).run()
+    assert "--max-minutes" in (run / "events.log").read_text()
+    assert load_latest_checkpoint(run)["iteration"] == 0  # stopped before any step, state saved
+    Trainer(cfg.replace(iters=2, max_minutes=0.0), progress=False).run()  # resuming without the limit finishes
+    assert load_latest_checkpoint(run)["iteration"] == 2
+
+
 # ---------------------------------------------------------------------------- bad input
 
 

@@ -31,19 +31,10 @@ from engine.camera import Camera, frame_camera, look_at, normalize_vertices
 from engine.errors import MeshInputError, SketchmeshError
 from engine.fileio import atomic_write_text
 from engine.icosphere import PAPER_LEVEL, icosphere
-from engine.mesh import Mesh, unique_edges
+from engine.mesh import Mesh
 from training._torch import require_torch
-from training.model.losses import (
-    NORMAL_REFERENCE_PIXELS,
-    LossWeights,
-    dihedral_indices,
-    dihedral_smoothness_loss,
-    edge_loss,
-    normal_loss,
-    silhouette_iou_loss,
-    total_loss,
-)
 from training.evaluation.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
+from training.model.losses import NORMAL_REGIONS, LossWeights, MeshLoss
 
 FIT_ELEVATION_DEG = 30.0
 TOP_ELEVATION_DEG = 75.0
@@ -62,6 +53,8 @@ DEFAULT_FIT_THREADS = 1
 """torch intra-op threads for ``bench fit``: its tensors are small (642 vertices, N x 64 x 64 images),
 so extra threads buy little, and on a busy 2-core machine they spin: measured 100 iterations
 (6 views, 48 x 48) at 3.2 s CPU / 7.4 s wall with 1 thread against 24.5 s CPU / 52 s wall with 2."""
+
+DEFAULT_ITERS = 300
 
 MAX_RESOLUTION = 512
 MAX_VIEWS = 64
@@ -138,6 +131,8 @@ def fit_mesh(
     delta: float = 1.0,
     shading: str = "flat",
     voxel_resolution: int = DEFAULT_VOXEL_RESOLUTION,
+    normal_region: str = "image",
+    smoothing: float = 0.0,
 ) -> FitResult:
     """Deform the icosphere so its renders match the target's from ``views`` views.
 
@@ -154,6 +149,10 @@ def fit_mesh(
         delta: the rasterizer's Eq. 1 gradient strength.
         shading: ``"flat"`` or ``"smooth"`` normals in the rendered images (target and fit).
         voxel_resolution: grid of the final voxel IoU.
+        normal_region: where the normal term counts: ``"image"`` (the paper's Eq. 2) or
+            ``"target"`` (inside the target silhouette only), see :class:`training.model.losses.MeshLoss`.
+        smoothing: ``lambda`` of the large-steps parametrisation (Nicolet et al. 2021): Adam moves
+            ``u`` and the local offsets are ``(I + lambda L)^-1 u``; 0 moves the offsets directly.
 
     Returns:
         :class:`FitResult`.
@@ -175,6 +174,10 @@ def fit_mesh(
     weights = weights if weights is not None else DEFAULT_FIT_WEIGHTS
     if not isinstance(weights, LossWeights):
         raise ValueError(f"fit_mesh weights must be a LossWeights, got {type(weights).__name__}")
+    if normal_region not in NORMAL_REGIONS:
+        raise ValueError(f"normal_region must be one of {NORMAL_REGIONS}, got {normal_region!r}")
+    if not (isinstance(smoothing, (int, float)) and math.isfinite(smoothing) and smoothing >= 0):
+        raise ValueError(f"smoothing must be finite and >= 0, got {smoothing!r}")
     view_list = fit_views(views)
 
     from training.render import cameras_to_tensor, rasterize
@@ -185,11 +188,13 @@ def fit_mesh(
     base = torch.tensor(np.array(template.vertices), dtype=dtype)  # (V, 3)
     base = base + INIT_JITTER * torch.randn(base.shape, generator=gen, dtype=dtype)
     faces = torch.tensor(np.array(template.faces), dtype=torch.int64)
-    edges = torch.as_tensor(unique_edges(template.faces))
-    t64 = template.vertices.astype(np.float64)
-    template_lengths = torch.as_tensor(np.linalg.norm(t64[edges[:, 1]] - t64[edges[:, 0]], axis=1), dtype=dtype)
-    quads = torch.as_tensor(dihedral_indices(template.faces))
-    local = torch.zeros_like(base, requires_grad=True)  # (V, 3)
+    mesh_loss = MeshLoss(template, weights, normal_region=normal_region)
+    smoother = None
+    if smoothing > 0:
+        from training.model.networks import smoothing_operator
+
+        smoother = torch.as_tensor(smoothing_operator(np.asarray(template.faces), template.num_vertices, smoothing))
+    local = torch.zeros_like(base, requires_grad=True)  # (V, 3): offsets, or u when smoothing
     global_offset = torch.zeros(3, dtype=dtype, requires_grad=True)
     optimizer = torch.optim.Adam([local, global_offset], lr=float(lr))  # first use imports torch._dynamo (~2 s)
 
@@ -212,7 +217,10 @@ def fit_mesh(
         return 0.1 + 0.9 * 0.5 * (1.0 + math.cos(math.pi * t))
 
     scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lr_factor)
-    normal_scale = NORMAL_REFERENCE_PIXELS / float(resolution * resolution)
+
+    def current_vertices():
+        offsets = local if smoother is None else smoother @ local
+        return base + offsets + global_offset  # (V, 3)
 
     history: list[dict[str, float]] = []
     bar = None
@@ -222,15 +230,10 @@ def fit_mesh(
         bar = tqdm(total=iters, desc="fit", unit="it", leave=False)
     try:
         for it in range(iters):
-            verts = (base + local + global_offset)[None]  # (1, V, 3)
-            out = rasterize(verts.expand(n_views, -1, -1), faces, cam_t, resolution, delta=delta, shading=shading)
-            terms = {
-                "normal": normal_loss(out.normals, target_normals) * normal_scale,
-                "silhouette": silhouette_iou_loss(out.silhouette, target_sil),
-                "edge": edge_loss(verts, edges, template_lengths),
-                "smoothness": dihedral_smoothness_loss(verts, quads),
-            }
-            loss, log = total_loss(terms, weights)
+            verts = current_vertices().expand(n_views, -1, -1)  # (N, V, 3)
+            out = rasterize(verts, faces, cam_t, resolution, delta=delta, shading=shading)
+            loss, log = mesh_loss(verts, out.normals, target_normals, out.silhouette, target_sil)
+            # the edge and smoothness terms are per mesh: the N copies average to the one mesh's value
             if not math.isfinite(log["total"]):
                 raise FloatingPointError(f"fit loss became non-finite at iteration {it}: {log}")
             optimizer.zero_grad(set_to_none=True)
@@ -253,7 +256,7 @@ def fit_mesh(
             bar.close()
 
     with torch.no_grad():
-        final_v = (base + local + global_offset).detach()
+        final_v = current_vertices().detach()
         out = rasterize(final_v[None].expand(n_views, -1, -1), faces, cam_t, resolution, delta=delta, shading=shading)
     seconds = time.perf_counter() - start
     fitted = Mesh(final_v.numpy().astype(np.float32), template.faces)
@@ -344,10 +347,13 @@ def main_fit(args) -> int:
     """
     torch = require_torch()
     target_path = getattr(args, "target", None)
-    if not target_path:
-        raise SketchmeshError("bench fit needs --target MESH_FILE")
+    per_category = getattr(args, "procedural", None)
+    if bool(target_path) == bool(per_category):
+        raise SketchmeshError("bench fit needs exactly one of --target MESH_FILE or --procedural N")
+    if per_category:
+        return main_fit_procedural(args)
     views = _int_arg(args, "views", 1, MAX_VIEWS, 8)
-    iters = _int_arg(args, "iters", 0, MAX_ITERS, 300)
+    iters = _int_arg(args, "iters", 0, MAX_ITERS, DEFAULT_ITERS)
     resolution = _int_arg(args, "resolution", 8, MAX_RESOLUTION, 64)
     seed = _int_arg(args, "seed", 0, 2**31 - 1, 0)
     level = _int_arg(args, "level", 0, 5, PAPER_LEVEL)  # optional flag; the paper's level 3 when absent
@@ -357,7 +363,9 @@ def main_fit(args) -> int:
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        result = fit_mesh(target, views=views, iters=iters, resolution=resolution, seed=seed, progress=True, level=level)
+        extra = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+        result = fit_mesh(target, views=views, iters=iters, resolution=resolution, seed=seed, progress=True, level=level,
+                          **extra)
     finally:
         torch.set_num_threads(before)
     print(f"fit: {target_path} ({target.num_vertices} vertices, {target.num_faces} faces) "
@@ -383,6 +391,70 @@ def main_fit(args) -> int:
                 {k: h[k] for k in ("iter", "seconds", "silhouette_iou", "total")} for h in result.history
             ],
         }
+        atomic_write_text(json_path, json.dumps(record, indent=2) + "\n")
+        print(f"wrote {json_path}")
+    return 0
+
+
+def procedural_targets(per_category: int, split: str = "train") -> list[tuple[str, str, Mesh]]:
+    """(category, shape id, mesh) of the first ``per_category`` procedural shapes of ``split`` per category."""
+    from training.data.shapes import CATEGORIES, make_shape, shape_id, split_of
+
+    out = []
+    for c in CATEGORIES:
+        i, found = 0, 0
+        while found < per_category:
+            if split_of(c, i) == split:
+                out.append((c, shape_id(c, i), make_shape(c, i)))
+                found += 1
+            i += 1
+    return out
+
+
+def main_fit_procedural(args) -> int:
+    """``sketchmesh bench fit --procedural N``: the direct-fit ceiling on N training shapes of every category.
+
+    Prints one row per shape (mean / min silhouette IoU over the fit views, voxel IoU, Chamfer-L1,
+    seconds) and the means; ``--json`` writes them.
+    """
+    torch = require_torch()
+    per_category = _int_arg(args, "procedural", 1, 1000, 1)
+    views = _int_arg(args, "views", 1, MAX_VIEWS, 8)
+    iters = _int_arg(args, "iters", 0, MAX_ITERS, DEFAULT_ITERS)
+    resolution = _int_arg(args, "resolution", 8, MAX_RESOLUTION, 64)
+    seed = _int_arg(args, "seed", 0, 2**31 - 1, 0)
+    level = _int_arg(args, "level", 0, 5, PAPER_LEVEL)
+    threads = _int_arg(args, "threads", 1, 256, DEFAULT_FIT_THREADS)
+    extra = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+    json_path = getattr(args, "json", None)
+    targets = procedural_targets(per_category)
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    rows = []
+    try:
+        from tqdm import tqdm
+
+        for category, sid, mesh in tqdm(targets, desc="fit shapes", unit="shape"):
+            r = fit_mesh(mesh, views=views, iters=iters, resolution=resolution, seed=seed, progress=False,
+                         level=level, **extra)
+            rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(r.silhouette_iou)),
+                         "min_silhouette_iou": float(min(r.silhouette_iou)), "voxel_iou": r.voxel_iou,
+                         "chamfer_l1": r.chamfer_l1, "seconds": r.seconds})
+    finally:
+        torch.set_num_threads(before)
+    print(f"fit: {len(rows)} procedural training shapes <- icosphere level {level}, {iters} iterations, "
+          f"{views} views at {resolution}x{resolution}, {extra or 'default settings'}")
+    print(f"{'shape':<20} {'sil IoU':>8} {'min':>6} {'voxel':>6} {'chamfer':>8} {'s':>6}")
+    for r in rows:
+        print(f"{r['shape_id']:<20} {r['silhouette_iou']:>8.3f} {r['min_silhouette_iou']:>6.3f} {r['voxel_iou']:>6.3f} "
+              f"{r['chamfer_l1']:>8.4f} {r['seconds']:>6.1f}")
+    mean = {k: float(np.nanmean([r[k] for r in rows])) for k in ("silhouette_iou", "min_silhouette_iou", "voxel_iou",
+                                                               "chamfer_l1", "seconds")}
+    print(f"{'mean':<20} {mean['silhouette_iou']:>8.3f} {mean['min_silhouette_iou']:>6.3f} {mean['voxel_iou']:>6.3f} "
+          f"{mean['chamfer_l1']:>8.4f} {mean['seconds']:>6.1f}")
+    if json_path:
+        record = {"benchmark": "fit-procedural", "per_category": per_category, "iters": iters, "views": views,
+                  "resolution": resolution, "template_level": level, "settings": extra, "shapes": rows, "mean": mean}
         atomic_write_text(json_path, json.dumps(record, indent=2) + "\n")
         print(f"wrote {json_path}")
     return 0

@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench tradeoff`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench tradeoff`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -33,8 +33,22 @@ def _lazy(module: str, function: str):
 
 _cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
 _cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
+_cmd_bench_overfit = _lazy("training.bench.overfit", "main_overfit")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
+
+
+def _key_value(text: str) -> tuple[str, object]:
+    """``FIELD=VALUE`` -> (field, value parsed as JSON when it parses, else the string)."""
+    import json
+
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected FIELD=VALUE, got {text!r}")
+    try:
+        return key.replace("-", "_"), json.loads(value)
+    except json.JSONDecodeError:
+        return key.replace("-", "_"), value
 
 
 def register(commands, bench) -> None:
@@ -64,13 +78,45 @@ def register(commands, bench) -> None:
         "fit",
         help="fit the template sphere to a target mesh's multi-view renders through the rasterizer",
     ))
-    q.add_argument("--target", required=True, metavar="MESH_FILE", help="target mesh file")
+    q.add_argument("--target", metavar="MESH_FILE", help="target mesh file")
+    q.add_argument("--procedural", type=int_in(1, 1000), metavar="N",
+                   help="instead of --target: fit N procedural training shapes of every category and print the means")
     q.add_argument("--views", type=positive_int, default=8)
-    q.add_argument("--iters", type=positive_int, default=300)
+    q.add_argument("--iters", type=positive_int, default=None, help="Adam iterations (default 300)")
+    q.add_argument("--level", type=int_in(0, 5), default=None, help="icosphere level of the template (default 3)")
+    q.add_argument("--lr", type=float_in(1e-6, 10.0), default=None)
+    q.add_argument("--smoothing", type=float_in(0.0, 1e4), default=None,
+                   help="lambda of the large-steps offsets (I + lambda L)^-1 u (0: plain offsets)")
+    q.add_argument("--normal-region", choices=("image", "target"), default=None,
+                   help="where the normal term counts (the whole image, or inside the target silhouette)")
+    q.add_argument("--threads", type=positive_int, default=None)
     q.add_argument("--resolution", type=_resolution, default=64)
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", metavar="PATH", help="write the results as JSON")
     q.set_defaults(func=_cmd_bench_fit)
+
+    o = one_line_errors(bench.add_parser(
+        "overfit",
+        help="train the mesh predictor on a few shapes and compare it with direct fits of the same shapes",
+        description="Builds (or reads) a few procedural shapes, trains the predictor on their ground-truth "
+        "normal images for a fixed wall time, fits each shape directly, and prints silhouette and voxel IoU "
+        "of both on the shapes' own views.",
+    ))
+    o.add_argument("--out", required=True, metavar="DIR", help="work folder (data/, run/, overfit.json); resumes")
+    o.add_argument("--data", metavar="DIR", help="use the first --shapes train shapes of this dataset instead")
+    o.add_argument("--shapes", type=int_in(1, 1000), default=8)
+    o.add_argument("--minutes", type=float_in(0.0, 10_000.0), default=20.0, help="predictor training time (this call)")
+    o.add_argument("--batch", type=positive_int, default=32)
+    o.add_argument("--set", type=_key_value, action="append", metavar="FIELD=VALUE",
+                   help="override a training config field (repeat), e.g. --set lr_mesh=3e-4")
+    o.add_argument("--fit-iters", type=int_in(0, 100_000), default=600)
+    o.add_argument("--fit-lr", type=float_in(1e-6, 10.0), default=None)
+    o.add_argument("--fit-smoothing", type=float_in(0.0, 1e4), default=None)
+    o.add_argument("--fit-normal-region", choices=("image", "target"), default=None)
+    o.add_argument("--threads", type=positive_int, default=2)
+    o.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
+    o.add_argument("--quiet", action="store_true")
+    o.set_defaults(func=_cmd_bench_overfit)
 
     t = one_line_errors(bench.add_parser(
         "tradeoff",

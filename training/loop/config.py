@@ -27,6 +27,8 @@ class TrainConfig:
         data_dir: dataset root (``sketchmesh data --out``).
         out_dir: run folder (checkpoints, log.csv, curves, validation images).
         iters: total optimisation steps of the run (a resumed run continues to this count).
+        max_minutes: also stop (with a checkpoint) after this much wall time of one invocation
+            (0: no limit); what equal-time comparisons and ``bench overfit`` use.
         batch: per-process batch size.
         lr_g, lr_d: RMSProp learning rates of the generator and the discriminator (paper: 5e-5).
         lr_mesh, betas: Adam settings of the mesh predictor (paper: 1e-4, (0.9, 0.999)).
@@ -67,6 +69,7 @@ class TrainConfig:
     data_dir: str = ""
     out_dir: str = ""
     iters: int = 20000
+    max_minutes: float = 0.0
     batch: int = 4
     lr_g: float = 5e-5
     lr_d: float = 5e-5
@@ -117,8 +120,8 @@ class TrainConfig:
             problems.append(f"mode must be one of {MODES}, got {self.mode!r}")
         if self.device not in DEVICES:
             problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
-        if self.predictor_local_bound not in ("tanh", "clamp"):
-            problems.append(f"predictor_local_bound must be 'tanh' or 'clamp', got {self.predictor_local_bound!r}")
+        if self.predictor_local_bound not in ("tanh", "clamp", "clamp-after"):
+            problems.append(f"predictor_local_bound must be 'tanh', 'clamp' or 'clamp-after', got {self.predictor_local_bound!r}")
         if self.normal_region not in ("image", "target"):
             problems.append(f"normal_region must be 'image' or 'target', got {self.normal_region!r}")
         if self.shading not in ("flat", "smooth"):
@@ -138,7 +141,8 @@ class TrainConfig:
             if not (v > 0 and v < float("inf")):
                 problems.append(f"{name} must be finite and > 0, got {v}")
         for name in ("lambda_n", "lambda_s", "lambda_e", "lambda_m", "lambda_g", "lambda_l", "lambda_adv",
-                     "joint_mesh_weight", "predictor_smoothing", "grad_clip", "augment_strength", "sobel_threshold", "debug_sleep"):
+                     "joint_mesh_weight", "predictor_smoothing", "grad_clip", "augment_strength", "sobel_threshold", "debug_sleep",
+                     "max_minutes"):
             v = float(getattr(self, name))
             if not (v >= 0 and v < float("inf")):
                 problems.append(f"{name} must be finite and >= 0, got {v}")

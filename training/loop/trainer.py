@@ -655,7 +655,11 @@ class Trainer:
         t_start = time.perf_counter()
         data_iter = iter(loader)
         try:
+            deadline = t_start + 60.0 * cfg.max_minutes if cfg.max_minutes > 0 else float("inf")
             while self.iteration < cfg.iters:
+                if time.perf_counter() >= deadline:
+                    self._event(f"stopped at iteration {self.iteration}: --max-minutes {cfg.max_minutes:g} reached")
+                    break
                 batch = _to_device(next(data_iter), self.device)
                 ok, terms = self.train_step(batch, self.iteration)
                 self.iteration += 1

@@ -1,0 +1,202 @@
+"""``sketchmesh bench overfit``: can the mesh predictor learn a handful of shapes as well as a direct fit?
+
+The first check to make before tuning anything: trained on a few shapes with their ground-truth
+normal images (mode ``mesh``, no sketches, no augmentation) for a fixed wall time, the predictor
+must reproduce those same shapes about as well as direct optimisation of one mesh per shape
+(:func:`training.bench.fit.fit_mesh`, the ceiling of the template and the 2D losses). If it
+cannot, something between the data and the loss is wrong (a camera, an image convention, a
+scale, a biased gradient), not the amount of training.
+
+Both are scored the same way, on the shapes' own dataset views (24 azimuths at 30 degrees):
+
+* **silhouette IoU**: the mesh rendered from every dataset view at 64 x 64 against the stored
+  silhouette, averaged over views. The predictor's mesh is predicted from ``--input-views``
+  input views per shape (view frame, rotated back to the world) and each is scored on all views.
+* **voxel IoU** (32^3) against the shape's mesh, and the time each took.
+
+Steps (each resumes): build ``OUT/data`` (``--shapes`` procedural train-split shapes, one per
+category in turn) unless ``--data`` names a dataset, train ``OUT/run`` for ``--minutes``, fit
+every shape directly, write ``OUT/overfit.json`` and print the table.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from engine.errors import SketchmeshError
+from engine.fileio import atomic_write_text
+from engine.mesh import Mesh
+
+DEFAULT_SHAPES = 8
+DEFAULT_MINUTES = 20.0
+DEFAULT_INPUT_VIEWS = (0, 6, 12, 18)
+GAP_TARGET = 0.05
+"""The predictor passes when its mean silhouette IoU is within this of the direct fit's."""
+
+
+def overfit_jobs(n: int):
+    """``n`` procedural train-split shapes: the first of each category in turn, then the second..."""
+    from training.data.dataset import Job
+    from training.data.shapes import CATEGORIES, shape_id, split_of
+
+    jobs, per_cat = [], {c: 0 for c in CATEGORIES}
+    while len(jobs) < n:
+        for c in CATEGORIES:
+            if len(jobs) == n:
+                break
+            i = per_cat[c]
+            while split_of(c, i) != "train":
+                i += 1
+            per_cat[c] = i + 1
+            jobs.append(Job(c, shape_id(c, i), "train", "procedural", i))
+    return jobs
+
+
+def silhouette_ious(world_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """(N,) IoU of one world-frame mesh's silhouettes from N cameras against (N, S, S) targets."""
+    import torch
+
+    from training.evaluation.metrics import silhouette_iou
+    from training.render import rasterize
+
+    n, size = targets.shape[0], targets.shape[-1]
+    v = torch.from_numpy(np.ascontiguousarray(world_vertices, dtype=np.float64))[None].expand(n, -1, -1)
+    with torch.no_grad():
+        out = rasterize(v, torch.from_numpy(np.array(faces, np.int64)), torch.from_numpy(np.array(cameras, np.float64)), size)
+    sil = out.silhouette.numpy() > 0.5
+    return np.array([silhouette_iou(sil[k], targets[k] > 0.5) for k in range(n)])
+
+
+def _shape_arrays(dataset, category: str, sid: str) -> tuple[Mesh, np.ndarray, np.ndarray, np.ndarray]:
+    rec = dataset._by_id[(category, sid)]
+    p = dataset._path(rec)
+    get = dataset._cache.get
+    mesh = dataset.load_mesh(category, sid)
+    return mesh, get(p, "cameras"), get(p, "silhouette64"), get(p, "normals64")
+
+
+def score_predictor(run_dir: Path, dataset, input_views) -> list[dict]:
+    """Per shape: mean silhouette IoU over all views and voxel IoU, predicted from ``input_views``."""
+    import torch
+
+    from training.evaluation.evaluate import world_vertices
+    from training.evaluation.metrics import voxel_iou
+    from training.loop.trainer import load_run
+
+    cfg, models, state = load_run(run_dir)
+    predictor = models["predictor"]
+    faces = predictor.template_faces.numpy()
+    rows = []
+    for category, sid, _ in dataset.shapes():
+        mesh, cams, sils, n64 = _shape_arrays(dataset, category, sid)
+        views = [v for v in input_views if v < len(cams)]
+        inp = torch.from_numpy(np.ascontiguousarray(n64[views].transpose(0, 3, 1, 2), np.float32))
+        with torch.no_grad():
+            local, glob = predictor(inp)
+            verts = predictor.vertices(local, glob).double().numpy()
+        ious, vox = [], []
+        for k, v in enumerate(views):
+            world = world_vertices(verts[k], cams[v])
+            ious.append(float(silhouette_ious(world, faces, cams, sils).mean()))
+            vox.append(voxel_iou(Mesh(world.astype(np.float32), faces), mesh))
+        rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(ious)),
+                     "voxel_iou": float(np.mean(vox))})
+    return rows
+
+
+def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **fit_kwargs) -> list[dict]:
+    """Per shape: direct fit (:func:`training.bench.fit.fit_mesh`), scored on the dataset's views."""
+    from training.bench.fit import fit_mesh
+    from training.evaluation.metrics import voxel_iou
+
+    rows = []
+    for category, sid, _ in dataset.shapes():
+        mesh, cams, sils, _ = _shape_arrays(dataset, category, sid)
+        res = fit_mesh(mesh, views=views, iters=iters, seed=seed, progress=progress, **fit_kwargs)
+        fitted = res.mesh  # the normalised target frame, which the dataset's meshes are already in
+        ious = silhouette_ious(fitted.vertices, fitted.faces, cams, sils)
+        rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(ious.mean()),
+                     "voxel_iou": voxel_iou(fitted, mesh), "seconds": res.seconds})
+    return rows
+
+
+def format_table(fit_rows: list[dict], pred_rows: list[dict]) -> str:
+    lines = [f"{'shape':<22} {'fit sil':>8} {'pred sil':>8} {'gap':>7} {'fit vox':>8} {'pred vox':>8}"]
+    for f, p in zip(fit_rows, pred_rows):
+        lines.append(f"{f['shape_id']:<22} {f['silhouette_iou']:>8.3f} {p['silhouette_iou']:>8.3f} "
+                     f"{f['silhouette_iou'] - p['silhouette_iou']:>7.3f} {f['voxel_iou']:>8.3f} {p['voxel_iou']:>8.3f}")
+    fs = float(np.mean([r["silhouette_iou"] for r in fit_rows]))
+    ps = float(np.mean([r["silhouette_iou"] for r in pred_rows]))
+    fv = float(np.mean([r["voxel_iou"] for r in fit_rows]))
+    pv = float(np.mean([r["voxel_iou"] for r in pred_rows]))
+    lines.append(f"{'mean':<22} {fs:>8.3f} {ps:>8.3f} {fs - ps:>7.3f} {fv:>8.3f} {pv:>8.3f}")
+    return "\n".join(lines)
+
+
+def main_overfit(args) -> int:
+    """``sketchmesh bench overfit``; see the module docstring."""
+    import torch
+
+    from training.data.dataset import BuildSettings, ShapeViewDataset, build_dataset
+    from training.loop.config import TrainConfig
+    from training.loop.trainer import Trainer
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise SketchmeshError(f"--out {out} is a file, not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(int(args.threads))
+    if args.data:
+        data_dir = Path(args.data)
+        if not (data_dir / "manifest.json").is_file():
+            raise SketchmeshError(f"--data {data_dir} is not a dataset (no manifest.json; make one with sketchmesh data)")
+    else:
+        data_dir = out / "data"
+        build_dataset(data_dir, overfit_jobs(args.shapes), BuildSettings(), workers=1, progress=not args.quiet)
+    dataset = ShapeViewDataset(data_dir, "train", extra_views=0, augment_strength=0.0)
+    shapes = dataset.shapes()[: args.shapes]
+    if not shapes:
+        raise SketchmeshError(f"the train split of {data_dir} has no shapes")
+    categories = sorted({c for c, _, _ in shapes})
+    if len(dataset.shapes()) > args.shapes:  # keep exactly the first --shapes shapes
+        keep = {(c, s) for c, s, _ in shapes}
+        dataset._shapes = [r for r in dataset._shapes if (r["category"], r["shape_id"]) in keep]
+
+    overrides = dict(args.set or [])
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(out / "run"), iters=10**7,
+                      max_minutes=float(args.minutes), batch=args.batch, augment_strength=0.0, val_every=0,
+                      ckpt_every=200, plot_every=200, categories=tuple(categories), seed=args.seed)
+    if overrides:
+        try:
+            cfg = TrainConfig.from_dict({**cfg.to_dict(), **overrides})
+        except (ValueError, TypeError) as exc:
+            raise SketchmeshError(f"--set: {exc}") from None
+    train_set = ShapeViewDataset(data_dir, "train", extra_views=cfg.extra_views, augment_strength=0.0,
+                                 seed=cfg.seed, categories=list(categories))
+    train_set._shapes = [r for r in train_set._shapes if (r["category"], r["shape_id"]) in {(c, s) for c, s, _ in shapes}]
+    train_set._items = [(si, v) for si, s in enumerate(train_set._shapes) for v in range(int(s["num_views"]))]
+    t0 = time.perf_counter()
+    Trainer(cfg, progress=not args.quiet, train_set=train_set, val_set=None).run()
+    train_s = time.perf_counter() - t0
+    pred_rows = score_predictor(out / "run", dataset, DEFAULT_INPUT_VIEWS)
+    fit_kwargs = {k: v for k, v in (("normal_region", args.fit_normal_region), ("smoothing", args.fit_smoothing),
+                                    ("lr", args.fit_lr)) if v is not None}
+    fit_rows = score_fit(dataset, iters=args.fit_iters, views=8, seed=args.seed, progress=not args.quiet, **fit_kwargs)
+    print(f"overfit: {len(shapes)} shapes of {data_dir}, predictor trained {train_s / 60:.1f} min this call "
+          f"(run {out / 'run'}); direct fit {args.fit_iters} iterations per shape, "
+          f"{np.mean([r['seconds'] for r in fit_rows]):.1f} s each")
+    print(format_table(fit_rows, pred_rows))
+    gap = np.mean([r["silhouette_iou"] for r in fit_rows]) - np.mean([r["silhouette_iou"] for r in pred_rows])
+    verdict = "PASS" if gap <= GAP_TARGET else "FAIL"
+    print(f"{verdict}: predictor within {gap:.3f} silhouette IoU of the direct fit (target <= {GAP_TARGET})")
+    record = {"benchmark": "overfit", "data": str(data_dir), "shapes": [s for _, s, _ in shapes],
+              "train_minutes": train_s / 60.0, "config": cfg.to_dict(), "fit": fit_rows, "predictor": pred_rows,
+              "gap": float(gap), "pass": bool(gap <= GAP_TARGET)}
+    atomic_write_text(out / "overfit.json", json.dumps(record, indent=2, default=lambda x: None if isinstance(x, float) and not math.isfinite(x) else str(x)) + "\n")
+    print(f"wrote {out / 'overfit.json'}")
+    return 0
