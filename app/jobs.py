@@ -13,6 +13,8 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, QThreadPool, Signal, Slot
 
+from engine.errors import SketchmeshError
+
 WAIT_MS = 10_000
 """How long :meth:`JobQueue.wait` waits by default (closing the window waits for the writes)."""
 
@@ -41,7 +43,8 @@ class JobQueue(QObject):
         """Run ``fn()`` after every job submitted before it; returns the job id.
 
         ``on_done(result)`` / ``on_error(message)`` run later on this object's (GUI) thread;
-        an exception in ``fn`` becomes ``on_error("Type: message")`` (OSError: its strerror).
+        an exception in ``fn`` becomes ``on_error("Type: message")`` (a SketchmeshError: its
+        message; an OSError: its strerror and file name).
         """
         self._next += 1
         jid = self._next
@@ -50,6 +53,8 @@ class JobQueue(QObject):
         def run() -> None:
             try:
                 result = fn()
+            except SketchmeshError as exc:
+                self._finished.emit(jid, False, str(exc))
             except OSError as exc:
                 self._finished.emit(jid, False, f"{exc.strerror or exc}" + (f": {exc.filename}" if exc.filename else ""))
             except Exception as exc:  # noqa: BLE001 (reported to the caller; the queue goes on)

@@ -244,14 +244,14 @@ class ScriptedSession:
         window: the window, shown, with an engine loaded.
         plan: what to do.
         export_path: where the mesh is exported (its suffix picks the format).
-        background: (H, W) ink of the sketch to open first (None: start on a blank canvas).
+        sketch: the sketch file to open first, through File > Open's path (None: a blank canvas).
     """
 
-    def __init__(self, window, plan: SessionPlan, export_path: Path, background: np.ndarray | None) -> None:  # noqa: ANN001
+    def __init__(self, window, plan: SessionPlan, export_path: Path, sketch: str | None) -> None:  # noqa: ANN001
         self.window = window
         self.plan = plan
         self.export_path = Path(export_path)
-        self.background = background
+        self.sketch = sketch
         self.log = SessionLog()
         self.probe = LagRecorder(PROBE_INTERVAL_MS)
         self.ui_cpu_s = 0.0
@@ -318,10 +318,10 @@ class ScriptedSession:
         w, plan, log = self.window, self.plan, self.log
         ctrl = w.controller
         canvas = w.canvas
-        if self.background is not None:
+        if self.sketch is not None:
             self.probe.phase = "open"
             floor = ctrl.latest_id
-            canvas.set_background_ink(self.background)
+            w.open_path(self.sketch)  # decoded on a job thread, then placed as the background layer
             yield self._wait_mesh(floor, "the opened sketch's mesh")
         yield ("sleep", THINK_MS)
 
@@ -477,19 +477,17 @@ def run_session(sketch: str | None, report_path: str, screenshot: str | None, mo
     """
     from app.settings import AppSettings  # noqa: PLC0415
     from app.window import MainWindow, bundled_models_dir, models_present, no_models_message  # noqa: PLC0415
-    from engine.errors import ModelError, SketchInputError, SketchmeshError  # noqa: PLC0415
+    from engine.errors import ModelError, SketchmeshError  # noqa: PLC0415
     from engine.fileio import atomic_write_text  # noqa: PLC0415
-    from engine.preprocess import load_sketch_image  # noqa: PLC0415
 
     plan = plan or SessionPlan()
     folder = Path(models) if models else Path(AppSettings.load().models_dir or bundled_models_dir())
     if not models_present(folder):
         raise ModelError(no_models_message(folder))
-    ink = None
-    if sketch is not None:
-        ink = load_sketch_image(sketch)
-        if not np.any(ink > 0.5):
-            raise SketchInputError(f"{sketch}: the image has no ink (a blank page?)")
+    if sketch is not None:  # fail before the window is built
+        from app.window import read_sketch_source  # noqa: PLC0415
+
+        read_sketch_source(Path(sketch))
     QApplication.instance() or QApplication([sys.argv[0]])
     with tempfile.TemporaryDirectory(prefix="sketchmesh-session-") as tmp:
         window = MainWindow(models_dir=folder, autosave_dir=Path(tmp) / "autosave", persist_settings=False)
@@ -503,7 +501,7 @@ def run_session(sketch: str | None, report_path: str, screenshot: str | None, mo
             window.activateWindow()
             QTest.qWaitForWindowActive(window)  # window shortcuts (Ctrl+Z, Ctrl+1) need it
             export_path = Path(report_path).with_suffix(plan.export_suffix)
-            session = ScriptedSession(window, plan, export_path, ink)
+            session = ScriptedSession(window, plan, export_path, sketch)
             t0 = time.perf_counter()
             error = session.run()
             report = build_report(session, sketch=sketch, models=str(folder), duration_s=time.perf_counter() - t0, error=error)

@@ -117,6 +117,22 @@ def _png_bytes(image: QImage | QPixmap) -> bytes:
     return bytes(buf.data().data())
 
 
+def read_sketch_source(path: Path) -> SketchState | np.ndarray:
+    """What File > Open reads (any thread): a ``.sketch.json``'s state, or an image's (H, W) ink.
+
+    Raises:
+        SketchInputError: missing, corrupt or blank file.
+    """
+    if path.name.lower().endswith(SKETCH_SUFFIX):
+        return read_sketch_file(path)[0]
+    from engine.preprocess import load_sketch_image  # noqa: PLC0415
+
+    ink = load_sketch_image(path)
+    if not np.any(ink > 0.5):
+        raise SketchInputError(f"{path}: the image has no ink (a blank page?)")
+    return ink
+
+
 def format_timings(timings_ms: dict[str, float], cached: bool = False) -> str:
     """One status-bar line: ``generator 12.3 ms · predictor 2.1 ms · total 15.0 ms``."""
     parts = [f"{k} {float(v):.1f} ms" for k, v in timings_ms.items()]
@@ -167,11 +183,13 @@ class MainWindow(QMainWindow):
         meshUpdated(int): a fresh prediction was shown (request id).
         inferenceFailed(int, str): the newest request failed (request id, message).
         exportFinished(str, str): a mesh export ended (path, error message or "").
+        sketchOpened(str, str): opening a file ended (path, error message or "").
     """
 
     meshUpdated = Signal(int)
     inferenceFailed = Signal(int, str)
     exportFinished = Signal(str, str)
+    sketchOpened = Signal(str, str)
 
     def __init__(
         self,
@@ -536,33 +554,37 @@ class MainWindow(QMainWindow):
     def open_path(self, path: str | os.PathLike, *, interactive: bool = True) -> bool:
         """Open a sketch image (as a background layer) or a ``.sketch.json``.
 
-        On failure the current drawing is kept; with ``interactive`` a message box and the
-        status bar say why, otherwise the SketchInputError propagates (CLI paths).
+        Interactive: the file is read and decoded on a job thread (a large scan takes a
+        while) and applied when ready; returns True once the request is accepted, and
+        ``sketchOpened(path, error)`` follows. On failure the current drawing is kept, and a
+        message box and the status bar say why. Not interactive (CLI paths): synchronous,
+        and the SketchInputError propagates.
         """
         p = Path(path)
-        try:
-            if p.name.lower().endswith(SKETCH_SUFFIX):
-                state, _size = read_sketch_file(p)
-                self.canvas.load_state(state)
-                self._current_path = p
-                self._saved_state = self.canvas.state
-            else:
-                from engine.preprocess import load_sketch_image  # noqa: PLC0415
+        if not interactive:
+            self._apply_opened(p, read_sketch_source(p))
+            return True
+        self.show_message(f"Opening {p.name}...")
+        self.jobs.submit(lambda: read_sketch_source(p), lambda src: self._apply_opened(p, src), lambda msg: self._open_failed(p, msg))
+        return True
 
-                ink = load_sketch_image(p)
-                if not np.any(ink > 0.5):
-                    raise SketchInputError(f"{p}: the image has no ink (a blank page?)")
-                self.canvas.set_background_ink(ink)
-        except SketchmeshError as exc:
-            if not interactive:
-                raise
-            self.show_message(f"Could not open {p.name}: {exc}")
-            QMessageBox.warning(self, "Cannot open sketch", str(exc))
-            return False
+    def _apply_opened(self, p: Path, source: SketchState | np.ndarray) -> None:
+        if isinstance(source, SketchState):
+            self.canvas.load_state(source)
+            self._current_path = p
+            self._saved_state = self.canvas.state
+        else:
+            self.canvas.set_background_ink(source)
         self.settings.last_open_dir = str(p.parent)
         self.show_message(f"Opened {p.name}")
         self._update_actions()
-        return True
+        self.sketchOpened.emit(str(p), "")
+
+    def _open_failed(self, p: Path, message: str) -> None:
+        self.show_message(f"Could not open {p.name}: {message}")
+        if not self._closed:
+            QMessageBox.warning(self, "Cannot open sketch", message)
+        self.sketchOpened.emit(str(p), message)
 
     def save(self) -> bool:
         """Save to the current ``.sketch.json`` (asks for a name the first time)."""

@@ -22,6 +22,7 @@ import pytest
 from bad_inputs import write_images
 from gui_helpers import draw_stroke, gui_isolation, line_points
 from onnx_fixtures import write_corrupt_model, write_fixture_models
+from PySide6.QtCore import QEventLoop, QTimer
 from PySide6.QtWidgets import QFileDialog
 
 from app.window import MainWindow
@@ -92,8 +93,14 @@ def window(qtbot, tmp_path, inputs):
 
 
 def _open(w: MainWindow, path: Path, monkeypatch) -> None:
+    """File > Open, then wait until the file has been read (that happens on a job thread)."""
     monkeypatch.setattr(QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (str(path), "")))
+    loop = QEventLoop()
+    w.sketchOpened.connect(loop.quit)
+    QTimer.singleShot(WAIT_MS, loop.quit)
     w.actions["open"].trigger()
+    loop.exec()
+    w.sketchOpened.disconnect(loop.quit)
 
 
 OPEN_CASES = {

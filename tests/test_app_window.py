@@ -184,7 +184,9 @@ def test_open_corrupt_image_keeps_drawing_and_valid_image_becomes_background(qtb
     bad = tmp_path / "bad.png"
     bad.write_bytes(b"\x89PNG\r\n\x1a\nthis is not a png")
     monkeypatch.setattr(QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (str(bad), "")))
-    w.actions["open"].trigger()
+    with qtbot.waitSignal(w.sketchOpened, timeout=WAIT_MS) as opened:
+        w.actions["open"].trigger()  # decoded on a job thread
+    assert opened.args[0] == str(bad) and "bad.png" in opened.args[1]
     assert dialogs.kinds() == ["warning"] and "bad.png" in dialogs.calls[0][2]
     assert w.canvas.strokes() == before and w.canvas.background is None
     assert "Could not open bad.png" in w.status_text()
@@ -445,6 +447,7 @@ def test_save_and_reopen_sketch_document(qtbot, make_window, tmp_path, monkeypat
     w.actions["clear"].trigger()
     assert w.is_dirty
     monkeypatch.setattr(QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (str(target), "")))
-    w.actions["open"].trigger()
+    with qtbot.waitSignal(w.sketchOpened, timeout=WAIT_MS):
+        w.actions["open"].trigger()
     assert [s.points.tolist() for s in w.canvas.strokes()] == [s.points.tolist() for s in drawn]
     assert not w.is_dirty and w.canvas.history.can_undo  # opening is undoable too
