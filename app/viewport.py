@@ -40,7 +40,7 @@ import sys
 import time
 
 import numpy as np
-from PySide6.QtCore import QEventLoop, QObject, QRectF, Qt, QThread, QTimer, Signal, Slot
+from PySide6.QtCore import QEventLoop, QMetaObject, QObject, QRectF, Qt, QThread, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QMouseEvent, QPainter, QPaintEvent, QResizeEvent, QShowEvent, QWheelEvent
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
@@ -363,6 +363,16 @@ class _Scene(QObject):
         self.frameReady.emit(image, self._want, info)
 
 
+def _stop_render_thread(scene: _Scene, thread: QThread) -> None:
+    """Finalize the scene on its thread and wait for that thread to end (idempotent)."""
+    if thread.isFinished() or not thread.isRunning():
+        return
+    QMetaObject.invokeMethod(scene, "finalize", Qt.ConnectionType.QueuedConnection)
+    if not thread.wait(SYNC_TIMEOUT_MS):
+        thread.quit()
+        thread.wait(SYNC_TIMEOUT_MS)
+
+
 class MeshViewport(QWidget):
     """Shows one predicted mesh, lit and smooth-shaded, with orbit/pan/zoom.
 
@@ -428,6 +438,8 @@ class MeshViewport(QWidget):
         self._scene.frameReady.connect(self._on_frame, q)
         self._scene.failed.connect(self._on_failed, q)
         self._scene.readied.connect(self._on_readied, q)
+        if self._thread is not None:  # a viewport destroyed without close_plotter() still stops its thread
+            self.destroyed.connect(lambda *_a, scene=self._scene, thread=self._thread: _stop_render_thread(scene, thread))
         w, h = self._device_size()
         self._setup_sig.emit(w, h)
 

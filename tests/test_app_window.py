@@ -408,6 +408,21 @@ def test_viewport_renders_on_its_own_thread_and_orbits_and_zooms_with_the_mouse(
     assert vp.step_ms["mesh_upload"] and vp.render_ms  # the UI-thread and render-thread steps are measured
 
 
+def test_a_viewport_deleted_without_close_stops_its_render_thread(qtbot):
+    from app.viewport import MeshViewport
+    from engine.icosphere import icosphere
+
+    vp = MeshViewport()
+    vp.resize(200, 160)
+    vp.show()
+    qtbot.waitExposed(vp)
+    vp.set_mesh(icosphere(2, 0.5))
+    assert vp.sync() and vp.render_count >= 1
+    thread = vp._thread
+    vp.deleteLater()
+    qtbot.waitUntil(thread.isFinished, timeout=5000)
+
+
 def test_wait_until_ready_loads_models_and_shaders_before_the_window_shows(qtbot, tmp_path):
     w = MainWindow(engine_factory=fake_factory(FakeEngine()), autosave=False, persist_settings=False)
     try:
