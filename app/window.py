@@ -84,7 +84,10 @@ def models_present(folder: Path) -> bool:
 
 
 def no_models_message(folder: Path) -> str:
-    return f"No models in {folder}: choose a model folder (File > Load models...)"
+    """Why ``folder`` cannot be used, naming the ONNX file when exactly one of the two is missing."""
+    missing = [name for name in (GENERATOR_FILE, PREDICTOR_FILE) if not (folder / name).is_file()]
+    what = f" ({missing[0]} is missing)" if folder.is_dir() and len(missing) == 1 else ""
+    return f"No models in {folder}{what}: choose a model folder (File > Load models...)"
 
 
 def default_engine_factory(folder: Path) -> object:
