@@ -149,8 +149,8 @@ class StagedWrites:
         while not parent.exists() and parent != parent.parent:
             missing.append(parent)
             parent = parent.parent
+        self._created_dirs.extend(missing)  # deepest first: removal order (also if the next line fails midway)
         fd, tmp = _temporary_sibling(path)
-        self._created_dirs.extend(missing)  # deepest first: removal order
         self._staged.append((tmp, path))
         with os.fdopen(fd, "wb") as fh:
             fh.write(data.encode("utf-8") if isinstance(data, str) else data)

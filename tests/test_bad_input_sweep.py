@@ -48,7 +48,10 @@ class Case:
 
 
 def snapshot(root: Path) -> dict[str, int]:
-    return {str(p.relative_to(root)): (p.stat().st_size if p.is_file() else -1) for p in root.rglob("*")}
+    """Every path under ``root`` and its size (-1 for folders); derived caches (``.cache/``) left out:
+    a dataset's cache, made while reading it, is not an output of the failed command."""
+    return {str(p.relative_to(root)): (p.stat().st_size if p.is_file() else -1) for p in root.rglob("*")
+            if ".cache" not in p.relative_to(root).parts}
 
 
 def run_case(case: Case, world: dict, capsys) -> str:
@@ -245,6 +248,8 @@ DATA_CASES = [
     Case("10^6-pixel images", _data("--size", "1000000"), "1000000x1000000 need"),
     Case("10^5 workers", _data("--workers", "100000"), "--workers: must be in [1, 256]"),
     Case("elevation out of range", _data("--elevations", "95"), "elevation must be in (-90, 90)"),
+    Case("a shard with no shapes", _data("--categories", "chair", "--shapes-per-category", "2", "--shard", "5/8"),
+         "has only 2 shapes, so shard 5 of 8 would render none"),
     Case("--out under a file", lambda w: ["data", "--out", w["afile"] / "d", "--categories", "chair"],
          "afile is a file, not a folder"),
     Case("--out is a file", lambda w: ["data", "--out", w["afile"], "--categories", "chair"],

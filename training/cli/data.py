@@ -157,15 +157,16 @@ def cmd_build(args: argparse.Namespace) -> int:
     jobs = make_jobs(args.source, args.shapes_per_category, args.categories)
     if not jobs:
         raise DataCommandError(f"--source {args.source} has no shapes to render")
+    if shard[0] >= len(jobs):
+        raise DataCommandError(f"--shard {args.shard}: --source {args.source} has only {len(jobs)} shapes, "
+                               f"so shard {shard[0]} of {shard[1]} would render none")
     check_build_request(args.out, -(-len(jobs) // shard[1]), settings, args.workers)
     t0 = time.perf_counter()
     with _plain_warnings():
         summary = build_dataset(args.out, jobs, settings, workers=args.workers, shard=shard, progress=not args.no_progress)
     dt = time.perf_counter() - t0
     if summary["shapes"] == 0:
-        failed = summary["failed"]
-        if not failed:
-            raise DataCommandError(f"shard {args.shard} of --source {args.source} has no shapes to render")
+        failed = summary["failed"] or [("?", "no complete shape file")]
         first = f"{failed[0][0]}: {failed[0][1]}"
         what = first if len(failed) == 1 else f"all {len(failed)} failed, the first with {first}"
         raise DataCommandError(f"no shape could be rendered from --source {args.source}; nothing written ({what})")
