@@ -533,6 +533,12 @@ class ShapeFileCache:
         self._pid = os.getpid()
         self._files: OrderedDict[str, dict] = OrderedDict()
 
+    def __getstate__(self) -> dict:  # pickled into a spawned worker: open files stay here, the copy starts empty
+        return {"capacity": self.capacity}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["capacity"])
+
     def get(self, path: str, key: str) -> np.ndarray:
         if os.getpid() != self._pid:  # forked into a DataLoader worker: never share open handles
             self._pid, self._files = os.getpid(), OrderedDict()
@@ -580,19 +586,38 @@ class ShapeViewDataset(_DatasetBase):
         seed: augmentation / extra-view seed; item i always gets the same augmentation and the
             same other views (deterministic in (seed, i), independent of the epoch).
         categories: restrict to these categories (default all in the dataset).
+        fields: ``"all"`` (every key below) or ``"mesh"`` (only what a mesh-mode step reads:
+            ``normals64``, ``silhouette64``, ``camera``, their ``other_*`` and the names; no
+            sketch is loaded or augmented, ``augment_strength`` is not used).
+        mesh_cache: where ``fields="mesh"`` reads its arrays from: ``"auto"`` / ``"disk"`` /
+            ``"memory"``, the per-dataset cache of :func:`training.data.mesh_cache.open_mesh_cache`
+            (decompressed once, bit-identical to the shape files), or ``"none"`` (the shape files).
 
     ``__getitem__(i)`` returns a dict of torch tensors (NCHW without N, float32 in [0, 1]):
     ``sketch`` (1, S, S) 1 = ink; ``normals`` (3, S, S); ``silhouette`` (1, S, S);
     ``normals64`` (3, s, s); ``silhouette64`` (s, s); ``camera`` (16,) float64 framed camera;
     ``other_normals64`` (K, 3, s, s); ``other_silhouette64`` (K, s, s); ``other_cameras``
     (K, 16) float64; and ``category`` str, ``shape_id`` str, ``view`` int. S = 256, s = 64 by default.
+    ``item(i, fields)`` returns the item with other fields than the dataset's.
+
+    Raises:
+        DatasetError: bad arguments, categories not in the dataset, or ``extra_views`` larger
+            than the other views a shape of the split has.
     """
 
+    FIELDS = ("all", "mesh")
+    MESH_CACHES = ("auto", "disk", "memory", "none")
+
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
-                 seed: int = 0, categories: Sequence[str] | None = None) -> None:
+                 seed: int = 0, categories: Sequence[str] | None = None, fields: str = "all",
+                 mesh_cache: str = "auto") -> None:
         self.root = Path(root)
         if split not in ("train", "val", "test", "all"):
             raise DatasetError(f"split must be 'train', 'val', 'test' or 'all', got {split!r}")
+        if fields not in self.FIELDS:
+            raise DatasetError(f"fields must be one of {self.FIELDS}, got {fields!r}")
+        if mesh_cache not in self.MESH_CACHES:
+            raise DatasetError(f"mesh_cache must be one of {self.MESH_CACHES}, got {mesh_cache!r}")
         if not isinstance(extra_views, (int, np.integer)) or extra_views < 0:
             raise DatasetError(f"extra_views must be an int >= 0, got {extra_views!r}")
         if not (np.isfinite(augment_strength) and 0.0 <= augment_strength <= 1.0):
@@ -618,6 +643,16 @@ class ShapeViewDataset(_DatasetBase):
         self.size = int(settings.get("size", 256))
         self.small_size = int(settings.get("small_size", 64))
         self._cache = ShapeFileCache()
+        fewest = min((int(r["num_views"]) for r in self._shapes), default=1)
+        if self.extra_views > max(fewest - 1, 1):
+            raise DatasetError(f"extra_views {self.extra_views} is more than the {fewest - 1} other views a shape of "
+                               f"{self.root} ({split} split) has; use at most {max(fewest - 1, 1)}")
+        self.fields = fields
+        self._arrays = None  # the mesh-array cache (fields "mesh")
+        if fields == "mesh" and mesh_cache != "none" and self._shapes:
+            from training.data.mesh_cache import open_mesh_cache
+
+            self._arrays = open_mesh_cache(self.root, self.manifest, mesh_cache)
 
     def __len__(self) -> int:
         return len(self._items)
@@ -649,12 +684,69 @@ class ShapeViewDataset(_DatasetBase):
         return rng.choice(pool, size=K, replace=K > len(pool)).astype(np.int64)
 
     def __getitem__(self, i: int) -> dict:
+        return self.item(i, self.fields)
+
+    def __getitems__(self, indices: Sequence[int]) -> list[dict]:
+        """The items of a batch (what a DataLoader with a batch sampler asks for), equal to ``[ds[i] for i in indices]``.
+
+        With ``fields="mesh"`` and the mesh-array cache, every array of the batch is gathered at once.
+        """
+        if self.fields != "mesh" or self._arrays is None or len(indices) == 0:
+            return [self[i] for i in indices]
+        torch = _torch()
+        n = len(self)
+        for i in indices:
+            if not -n <= i < n:
+                raise IndexError(f"index {i} out of range for a dataset of {n} views")
+        idx = [int(i) % n for i in indices]
+        a = self._arrays
+        recs = [self._shapes[self._items[i][0]] for i in idx]
+        views = np.array([self._items[i][1] for i in idx], np.int64)
+        first = np.array([a.row(r["file"]) for r in recs], np.int64)
+        rows = first + views  # (B,)
+        others = first[:, None] + np.stack([self.other_views(i) for i in idx]).reshape(len(idx), self.extra_views)
+        batch = {
+            "normals64": torch.from_numpy(np.ascontiguousarray(a.normals64[rows].transpose(0, 3, 1, 2), np.float32)),
+            "silhouette64": torch.from_numpy(a.silhouette64[rows].astype(np.float32)),
+            "camera": torch.from_numpy(a.cameras[rows].astype(np.float64)),
+            "other_normals64": torch.from_numpy(np.ascontiguousarray(a.normals64[others].transpose(0, 1, 4, 2, 3),
+                                                                     np.float32)),
+            "other_silhouette64": torch.from_numpy(a.silhouette64[others].astype(np.float32)),
+            "other_cameras": torch.from_numpy(a.cameras[others].astype(np.float64)),
+        }
+        return [{**{k: v[b] for k, v in batch.items()}, "category": r["category"], "shape_id": r["shape_id"],
+                 "view": int(views[b])} for b, r in enumerate(recs)]
+
+    def item(self, i: int, fields: str = "all") -> dict:
+        """Item ``i`` with ``fields`` ("all" or "mesh"; see the class docstring)."""
         torch = _torch()
         if not -len(self) <= i < len(self):
             raise IndexError(f"index {i} out of range for a dataset of {len(self)} views")
+        if fields not in self.FIELDS:
+            raise DatasetError(f"fields must be one of {self.FIELDS}, got {fields!r}")
         i = int(i) % len(self)
         si, v = self._items[i]
         rec = self._shapes[si]
+        others = self.other_views(i)
+        if fields == "mesh":
+            if self._arrays is not None:
+                a = self._arrays
+                row = a.row(rec["file"])
+                n64, s64, cams, v, others = a.normals64, a.silhouette64, a.cameras, row + v, row + others
+            else:
+                p = self._path(rec)
+                n64, s64, cams = (self._cache.get(p, k) for k in ("normals64", "silhouette64", "cameras"))
+            return {
+                "normals64": torch.from_numpy(np.ascontiguousarray(n64[v].transpose(2, 0, 1), np.float32)),
+                "silhouette64": torch.from_numpy(s64[v].astype(np.float32)),
+                "camera": torch.from_numpy(cams[v].astype(np.float64)),
+                "other_normals64": torch.from_numpy(np.ascontiguousarray(n64[others].transpose(0, 3, 1, 2), np.float32)),
+                "other_silhouette64": torch.from_numpy(s64[others].astype(np.float32)),
+                "other_cameras": torch.from_numpy(cams[others].astype(np.float64)),
+                "category": rec["category"],
+                "shape_id": rec["shape_id"],
+                "view": int(self._items[i][1]),
+            }
         p = self._path(rec)
         get = self._cache.get
         if self.augment_strength > 0:
@@ -665,7 +757,6 @@ class ShapeViewDataset(_DatasetBase):
             sketch = render_sketch(view_polylines(arrays, v), self.size, self.augment_strength, [self.seed, i])
         else:
             sketch = get(p, "sketch")[v].astype(np.float32) / 255.0
-        others = self.other_views(i)
         n64, s64 = get(p, "normals64"), get(p, "silhouette64")
         cams = get(p, "cameras")
         return {

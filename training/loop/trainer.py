@@ -194,8 +194,18 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> tuple[T
 # ----------------------------------------------------------------------------------------------
 
 
-def make_dataset(cfg: TrainConfig, split: str):
-    """The :class:`training.data.dataset.ShapeViewDataset` of a split, with a clear error if unusable."""
+def step_fields(cfg: TrainConfig) -> str:
+    """The dataset fields a training step of ``cfg`` reads: ``"mesh"`` in mesh mode, else ``"all"``.
+
+    Mesh mode reads normals64 / silhouette64 / cameras only, so its training set serves them from
+    the dataset's mesh-array cache (decompressed once, :mod:`training.data.mesh_cache`) and never
+    loads or augments a sketch.
+    """
+    return "mesh" if cfg.mode == "mesh" else "all"
+
+
+def make_dataset(cfg: TrainConfig, split: str, fields: str = "all"):
+    """The :class:`training.data.dataset.ShapeViewDataset` of a split (``fields`` as there), with a clear error if unusable."""
     root = Path(cfg.data_dir)
     if not cfg.data_dir or not root.is_dir():
         raise TrainingError(f"data folder {root} does not exist (create one with: sketchmesh data --out {root})")
@@ -204,7 +214,7 @@ def make_dataset(cfg: TrainConfig, split: str):
     try:
         return ShapeViewDataset(
             root, split, extra_views=cfg.extra_views, augment_strength=cfg.augment_strength if split == "train" else 0.0,
-            seed=cfg.seed, categories=list(cfg.categories) or None,
+            seed=cfg.seed, categories=list(cfg.categories) or None, fields=fields,
         )
     except SketchmeshError:
         raise
@@ -321,7 +331,7 @@ class Trainer:
         self.progress = progress and self.info.is_main
         self.version = code_version()
 
-        self.train_set = train_set if train_set is not None else make_dataset(cfg, "train")
+        self.train_set = train_set if train_set is not None else make_dataset(cfg, "train", step_fields(cfg))
         if len(self.train_set) == 0:
             raise TrainingError(f"the train split of {cfg.data_dir} has no samples")
         self.val_set = val_set
@@ -616,7 +626,9 @@ class Trainer:
             return None
         data = self.val_set if self.val_set is not None else self.train_set
         n = min(VAL_ITEMS, len(data))
-        batch = _to_device(torch.utils.data.default_collate([data[i] for i in range(n)]), self.device)
+        full = getattr(data, "item", None)  # a mesh-mode train set serves only the step's fields: ask for all
+        items = [full(i, "all") if full is not None else data[i] for i in range(n)]
+        batch = _to_device(torch.utils.data.default_collate(items), self.device)
         for m in self.models.values():
             m.eval()
         try:
