@@ -21,6 +21,8 @@ MAX_SUBDIVIDE_LEVELS = 4
 
 MAX_SMOOTH_ITERATIONS = 1000
 
+MAX_REFINE_STEPS = 100  # mirrors engine.refine.MAX_STEPS (checked by a test)
+
 
 FORMATS = ("obj", "glb", "gltf", "ply", "stl")  # mirrors engine.export.WRITERS (checked by a test)
 
@@ -45,6 +47,9 @@ def register(commands, bench) -> None:
     p.add_argument("--smooth", type=int_in(0, MAX_SMOOTH_ITERATIONS), default=0, metavar="N", help="Taubin smoothing iterations")
     p.add_argument("--subdivide", type=int_in(0, MAX_SUBDIVIDE_LEVELS), default=0, metavar="N",
                    help=f"Loop subdivision levels (0..{MAX_SUBDIVIDE_LEVELS})")
+    p.add_argument("--refine", type=int_in(0, MAX_REFINE_STEPS), default=0, metavar="N",
+                   help="refine the mesh with N steps so its silhouette from the sketch's view matches the drawing's "
+                   "outline (0 = off; see engine/refine.py)")
     p.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads (default: physical cores)")
     p.set_defaults(func=cmd_infer)
     one_line_errors(p)
@@ -83,7 +88,7 @@ def _normals_png_bytes(normals, path: Path) -> bytes:
     return buf.tobytes()
 
 
-def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, subdivide: int = 0,
+def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, subdivide: int = 0, refine: int = 0,
               normals_path: Path | None = None, report_path: Path | None = None) -> dict:
     """Run one sketch through the engine, post-process, write its files; return the report record.
 
@@ -92,8 +97,9 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
 
     Returns:
         dict with sketch, output, timings_ms (preprocess, generator, downsample, predictor,
-        assemble, postprocess, export, stats, total), vertices, faces, watertight,
-        winding_consistent, self_intersections, area, volume, cached, normals.
+        assemble, refine, postprocess, export, stats, total), vertices, faces, watertight,
+        winding_consistent, self_intersections, area, volume, cached, normals, refine_steps,
+        warnings.
     """
     from engine.pipeline import to_raster
 
@@ -108,7 +114,7 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
     from engine.postprocess import smooth as smooth_mesh
     from engine.postprocess import subdivide as subdivide_mesh
 
-    pred = engine.predict(raster, want_normals=normals_path is not None)
+    pred = engine.predict(raster, want_normals=normals_path is not None, refine=refine)
     t0 = time.perf_counter()
     mesh = pred.mesh
     if smooth:
@@ -138,6 +144,8 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
                 **stats,
                 "smooth_iterations": smooth,
                 "subdivide_levels": subdivide,
+                "refine_steps": refine,
+                "warnings": list(pred.warnings),
                 "cached": pred.cached,
                 "normals": str(normals_path) if normals_path is not None else None,
             }
@@ -222,7 +230,7 @@ def cmd_infer(args: argparse.Namespace) -> int:
     for sketch, target in zip(sketches, targets):
         try:
             record = infer_one(
-                sketch_engine, sketch, target, fmt, smooth=args.smooth, subdivide=args.subdivide,
+                sketch_engine, sketch, target, fmt, smooth=args.smooth, subdivide=args.subdivide, refine=args.refine,
                 normals_path=side_path(args.normals, sketch.stem, "_normals.png"),
                 report_path=side_path(args.report, sketch.stem, ".json"),
             )
@@ -230,6 +238,8 @@ def cmd_infer(args: argparse.Namespace) -> int:
             msg = (f"{sketch} -> {target} ({record['vertices']} vertices, {record['faces']} faces, "
                    f"watertight={record['watertight']}, {t['total']:.0f} ms)")
             (progress.write(msg) if progress else print(msg))
+            for warning in record["warnings"]:
+                print(f"sketchmesh: warning: {sketch}: {warning}", file=sys.stderr)
         except SketchmeshError as exc:
             failures.append(exc)
             if not many:

@@ -7,11 +7,14 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
 3. ``downsample``  area-average to (1, 3, 64, 64) (``cv2.INTER_AREA`` on the HWC image);
 4. ``predictor``   -> ``local_offset`` (1, V, 3), ``global_offset`` (1, 3);
 5. ``assemble``    template vertices + local + global -> :class:`engine.mesh.Mesh` in the view
-   frame (:mod:`engine.camera`).
+   frame (:mod:`engine.camera`);
+6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
+   matches the drawing's outline (:mod:`engine.refine`); 0.0 when off.
 
 Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
 cache keyed on a hash of the preprocessed raster skips stages 2-5 when the sketch has not
-changed. :meth:`SketchEngine.predict` is thread-safe and never touches Qt.
+changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
+thread-safe and never touches Qt.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -34,9 +37,10 @@ from engine.icosphere import icosphere
 from engine.mesh import Mesh
 from engine.models import LoadedModel, default_threads, load_generator, load_predictor, model_paths, resolve_models_dir
 from engine.preprocess import rasterize_strokes, sketch_raster_from_image
+from engine.refine import MAX_STEPS, refine_prediction
 from engine.strokes import Stroke
 
-STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble")
+STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "refine")
 """Keys of :attr:`Prediction.timings_ms`, in pipeline order."""
 
 DEFAULT_CACHE_SIZE = 16
@@ -58,6 +62,8 @@ class Prediction:
         timings_ms: one entry per stage in :data:`STAGES` (milliseconds); on a cache hit the
             skipped stages are 0.0.
         cached: True when stages 2-5 came from the cache.
+        warnings: things the user should know about the result (a refinement that fell back to
+            the unrefined mesh says why); empty when all went as asked.
     """
 
     mesh: Mesh
@@ -65,12 +71,14 @@ class Prediction:
     sketch: np.ndarray
     timings_ms: dict[str, float]
     cached: bool
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
 class _Entry:
     mesh: Mesh
     normals_nchw: np.ndarray  # (1, 3, 256, 256) float32 generator output, read-only; HWC only on request
+    refined: dict = field(default_factory=dict)  # steps -> engine.refine.RefineResult, under the cache lock
 
 
 def downsample_normals(normals_nchw: np.ndarray, size: int = C.PREDICTOR_INPUT_SIZE) -> np.ndarray:
@@ -114,6 +122,12 @@ def assemble_mesh(local_offset: np.ndarray, global_offset: np.ndarray, level: in
     if not np.all(np.isfinite(v)) or np.abs(v).max() > MAX_OFFSET:
         raise ModelError("the mesh predictor produced non-finite or absurd vertex positions (broken model?)")
     return Mesh(v.astype(np.float32), template.faces)
+
+
+def _check_steps(steps) -> int:
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 0 <= steps <= MAX_STEPS:
+        raise ValueError(f"refinement steps must be an int in [0, {MAX_STEPS}], got {steps!r}")
+    return int(steps)
 
 
 def raster_key(raster: np.ndarray) -> str:
@@ -166,13 +180,17 @@ class SketchEngine:
             bundled ``assets.MODELS_DIR``. A given folder replaces the bundled one entirely.
         threads: onnxruntime intra-op threads; None = physical cores (capped).
         cache_size: predictions kept in the LRU cache (0 disables caching).
+        refine_steps: refinement steps :meth:`predict` runs when not told (0 = off;
+            :attr:`refine_steps` can be changed later, e.g. by the app's toggle).
     """
 
-    def __init__(self, models_dir: str | os.PathLike | None = None, *, threads: int | None = None, cache_size: int = DEFAULT_CACHE_SIZE):
+    def __init__(self, models_dir: str | os.PathLike | None = None, *, threads: int | None = None,
+                 cache_size: int = DEFAULT_CACHE_SIZE, refine_steps: int = 0):
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise ValueError(f"threads must be a positive int or None, got {threads!r}")
         if not isinstance(cache_size, int) or cache_size < 0:
             raise ValueError(f"cache_size must be an int >= 0, got {cache_size!r}")
+        self.refine_steps = refine_steps
         self._models_dir = resolve_models_dir(models_dir)
         self._threads = threads or default_threads()
         self._cache_size = cache_size
@@ -192,6 +210,15 @@ class SketchEngine:
     def threads(self) -> int:
         return self._threads
 
+    @property
+    def refine_steps(self) -> int:
+        """Refinement steps :meth:`predict` runs by default (0 = off)."""
+        return self._refine_steps
+
+    @refine_steps.setter
+    def refine_steps(self, steps: int) -> None:
+        self._refine_steps = _check_steps(steps)
+
     def load(self) -> None:
         """Create and validate both sessions now (otherwise done on the first prediction).
 
@@ -202,6 +229,7 @@ class SketchEngine:
             if self._generator is not None and self._predictor is not None:
                 return
             gen_path, pred_path = model_paths(self._models_dir)
+            import engine.postprocess  # noqa: F401  refinement's self-intersection check: its scipy import stays out of the first prediction
             generator = load_generator(gen_path, self._threads)
             predictor = load_predictor(pred_path, self._threads)
             self._generator, self._predictor = generator, predictor
@@ -249,13 +277,14 @@ class SketchEngine:
         timings.update(generator=(t1 - t0) * 1e3, downsample=(t2 - t1) * 1e3, predictor=(t3 - t2) * 1e3, assemble=(t4 - t3) * 1e3)
         return _Entry(mesh, normals)
 
-    def predict(self, sketch, *, want_normals: bool = False) -> Prediction:
+    def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:
         """Predict a mesh from a sketch.
 
         Args:
             sketch: a preprocessed (256, 256) float32 raster (1 = ink), a sequence of
                 :class:`engine.strokes.Stroke`, or a path to an image file.
             want_normals: also return the (256, 256, 3) normal image.
+            refine: refinement steps (:mod:`engine.refine`; 0 = off); None uses :attr:`refine_steps`.
 
         Returns:
             A :class:`Prediction`; ``cached`` is True when the same raster was seen recently.
@@ -264,6 +293,7 @@ class SketchEngine:
             SketchInputError / EmptySketchError: unusable or blank sketch.
             ModelError: missing or broken models.
         """
+        steps = self._refine_steps if refine is None else _check_steps(refine)
         t0 = time.perf_counter()
         raster = to_raster(sketch)
         raster = np.array(raster, dtype=np.float32)
@@ -288,10 +318,24 @@ class SketchEngine:
                     self._cache.move_to_end(key)
                     while len(self._cache) > self._cache_size:
                         self._cache.popitem(last=False)
+        mesh, warnings = entry.mesh, ()
+        timings["refine"] = 0.0
+        if steps:
+            with self._cache_lock:
+                result = entry.refined.get(steps)
+            if result is None:
+                t1 = time.perf_counter()
+                result = refine_prediction(entry.mesh, raster, entry.normals_nchw, steps)
+                timings["refine"] = (time.perf_counter() - t1) * 1e3
+                with self._cache_lock:
+                    entry.refined[steps] = result
+            mesh = result.mesh
+            warnings = (result.warning,) if result.warning else ()
         return Prediction(
-            mesh=entry.mesh,
+            mesh=mesh,
             normals=np.ascontiguousarray(entry.normals_nchw[0].transpose(1, 2, 0)) if want_normals else None,
             sketch=raster,
             timings_ms={s: float(timings[s]) for s in STAGES},
             cached=cached,
+            warnings=warnings,
         )

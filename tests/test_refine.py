@@ -1,0 +1,233 @@
+"""Refinement to the sketch's outline (engine/refine.py): rasterizer, a hand-made case, the stability sweep, CLI."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from onnx_fixtures import write_fixture_models
+
+from engine.camera import NEAR
+from engine.cli import MAX_REFINE_STEPS
+from engine.icosphere import icosphere
+from engine.mesh import Mesh
+from engine.pipeline import STAGES, SketchEngine
+from engine.postprocess import mesh_stats
+from engine.preprocess import rasterize_strokes
+from engine.refine import (
+    MAX_STEPS,
+    fill_drawing,
+    pixel_coords,
+    refine_mesh,
+    refine_prediction,
+    render_silhouette,
+    silhouette_iou,
+    sketch_camera,
+    target_outline,
+)
+from engine.strokes import Stroke
+
+SIZE = 256
+
+
+def _ellipse(ax: int, ay: int, size: int = SIZE) -> np.ndarray:
+    m = np.zeros((size, size), np.uint8)
+    cv2.ellipse(m, (size // 2, size // 2), (ax, ay), 0, 0, 360, 1, -1)
+    return m > 0
+
+
+def _bumpy_sphere(seed: int = 0) -> Mesh:
+    m = icosphere(3, 0.5)
+    rng = np.random.default_rng(seed)
+    v = m.vertices * (1.0 + 0.15 * rng.standard_normal((m.num_vertices, 1)))
+    return m.with_vertices(v.astype(np.float32))
+
+
+def _silhouette(mesh: Mesh, camera, size: int = SIZE) -> np.ndarray:
+    px, _ = pixel_coords(mesh.vertices, camera, size)
+    return render_silhouette(px, mesh.faces, size)
+
+
+def test_rasterizer_matches_a_per_pixel_reference():
+    m = _bumpy_sphere(1)
+    cam = sketch_camera(m)
+    px, _ = pixel_coords(m.vertices, cam, 48)
+    fast = render_silhouette(px, m.faces, 48)
+    rows, cols = np.mgrid[0:48, 0:48] + 0.5
+    ref = np.zeros((48, 48), bool)
+    for a, b, c in px[m.faces]:  # every pixel centre against every face: obviously right, slow
+        e = [(q[0] - p[0]) * (rows - p[1]) - (q[1] - p[1]) * (cols - p[0]) for p, q in ((a, b), (b, c), (c, a))]
+        ref |= (e[0] >= 0) & (e[1] >= 0) & (e[2] >= 0) | (e[0] <= 0) & (e[1] <= 0) & (e[2] <= 0)
+    assert np.array_equal(fast, ref), f"{np.count_nonzero(fast != ref)} pixels differ"
+    assert fast.any() and not fast.all()
+
+
+def test_fill_drawing_fills_closed_outlines_and_handles_the_frame():
+    ring = np.zeros((64, 64), np.float32)
+    cv2.circle(ring, (32, 32), 20, 1.0, 2)
+    filled = fill_drawing(ring)
+    assert filled[32, 32] and not filled[2, 2]
+    touching = np.zeros((64, 64), np.float32)
+    cv2.rectangle(touching, (0, 0), (63, 40), 1.0, 2)  # the outline lies on the image border
+    assert fill_drawing(touching)[20, 30]
+    open_arc = np.zeros((64, 64), np.float32)
+    cv2.ellipse(open_arc, (32, 32), (20, 20), 0, 0, 180, 1.0, 2)
+    _, source = target_outline(open_arc, np.zeros((64, 64, 3), np.float32))
+    assert source == "generator"
+
+
+def test_sphere_refined_towards_an_ellipse_raises_iou_and_keeps_depth_and_topology():
+    sphere = icosphere(3, 0.5)
+    cam = sketch_camera(sphere)
+    target = _ellipse(102, 50)
+    before = silhouette_iou(_silhouette(sphere, cam), target)
+    res = refine_mesh(sphere, target, 3, camera=cam)
+    after = silhouette_iou(_silhouette(res.mesh, cam), target)
+    assert res.warning is None and res.steps == 3
+    assert before < 0.6 and after > 0.9, (before, after)
+    _, d0 = pixel_coords(sphere.vertices, cam, SIZE)
+    _, d1 = pixel_coords(res.mesh.vertices, cam, SIZE)
+    np.testing.assert_allclose(d1, d0, atol=1e-5)  # vertices moved along the image plane only, depth kept
+    stats = mesh_stats(res.mesh)
+    assert stats["watertight"] and stats["winding_consistent"] and stats["self_intersections"] == 0
+    assert np.array_equal(res.mesh.faces, sphere.faces)
+    assert refine_mesh(sphere, target, 0, camera=cam).mesh is sphere
+
+
+def test_refinement_grows_a_thin_part_the_prediction_lacks():
+    sphere = icosphere(3, 0.5)
+    cam = sketch_camera(sphere)
+    target = _ellipse(102, 50).astype(np.uint8)
+    cv2.rectangle(target, (120, 20), (136, 128), 1, -1)  # a long neck on top of the body
+    target = target > 0
+    res = refine_mesh(sphere, target, 4, camera=cam)
+    sil = _silhouette(res.mesh, cam)
+    assert silhouette_iou(sil, target) > 0.9
+    assert sil[30:60, 122:134].mean() > 0.8  # the neck is there
+
+
+def _degenerate_targets() -> dict[str, tuple[np.ndarray, np.ndarray | None]]:
+    normals_blob = np.zeros((SIZE, SIZE, 3), np.float32)
+    normals_blob[_ellipse(80, 60)] = (0.5, 0.5, 1.0)
+    thin = np.zeros((SIZE, SIZE), np.float32)
+    cv2.line(thin, (26, 128), (230, 128), 1.0, 2)  # an outline a few pixels wide
+    t = np.linspace(0, 2 * np.pi, 200)
+    eight = np.zeros((SIZE, SIZE), np.float32)  # a self-crossing stroke
+    pts = np.stack([128 + 100 * np.sin(t), 128 + 60 * np.sin(2 * t)], 1).round().astype(np.int32)
+    cv2.polylines(eight, [pts], True, 1.0, 2)
+    frame = np.zeros((SIZE, SIZE), np.float32)  # a drawing touching the frame
+    cv2.rectangle(frame, (0, 0), (SIZE - 1, 200), 1.0, 3)
+    dot = np.zeros((SIZE, SIZE), np.float32)
+    dot[128, 128] = 1.0
+    return {
+        "thin-outline": (thin, normals_blob),
+        "thin-outline-no-generator-silhouette": (thin, np.zeros((SIZE, SIZE, 3), np.float32)),
+        "self-crossing": (eight, normals_blob),
+        "touching-frame": (frame, normals_blob),
+        "one-dot": (dot, None),
+        "blank-with-empty-normals": (np.zeros((SIZE, SIZE), np.float32), np.zeros((SIZE, SIZE, 3), np.float32)),
+        "all-ink": (np.ones((SIZE, SIZE), np.float32), normals_blob),
+    }
+
+
+def _degenerate_meshes() -> dict[str, Mesh]:
+    ico = icosphere(3, 0.5)
+    flat = ico.vertices * np.array([1.0, 1.0, 0.0], np.float32)  # a pancake seen face on
+    line = ico.vertices * np.array([1.0, 0.0, 0.0], np.float32)  # projects to a segment
+    behind = ico.vertices + np.array([0, 0, 10.0], np.float32)  # behind the camera
+    return {"bumpy": _bumpy_sphere(2), "flat": ico.with_vertices(flat), "line": ico.with_vertices(line),
+            "point": ico.with_vertices(np.zeros_like(ico.vertices)), "behind": ico.with_vertices(behind)}
+
+
+@pytest.mark.parametrize("target_name", list(_degenerate_targets()))
+def test_stability_sweep_gives_a_finite_closed_mesh_or_the_unrefined_one(target_name):
+    sketch, normals = _degenerate_targets()[target_name]
+    for mesh_name, mesh in _degenerate_meshes().items():
+        res = refine_prediction(mesh, sketch, normals, 3)
+        v = res.mesh.vertices
+        assert np.all(np.isfinite(v)), (target_name, mesh_name)
+        assert np.array_equal(res.mesh.faces, mesh.faces), (target_name, mesh_name)
+        if res.warning is not None:
+            assert res.mesh is mesh, (target_name, mesh_name)
+        else:
+            assert np.isfinite(res.iou_after) and res.iou_after >= res.iou_before, (target_name, mesh_name)
+
+
+def test_bad_arguments_are_refused_with_what_was_received():
+    m = icosphere(2, 0.5)
+    with pytest.raises(ValueError, match="steps"):
+        refine_mesh(m, np.zeros((32, 32), bool), -1)
+    with pytest.raises(ValueError, match="steps"):
+        refine_mesh(m, np.zeros((32, 32), bool), MAX_STEPS + 1)
+    with pytest.raises(ValueError, match=r"\(32, 16\)"):
+        refine_mesh(m, np.zeros((32, 16), bool), 1)
+    assert MAX_REFINE_STEPS == MAX_STEPS
+
+
+# ---------------------------------------------------------------------------------------------- engine and CLI
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory) -> Path:
+    return write_fixture_models(tmp_path_factory.mktemp("models"))
+
+
+def test_engine_refines_on_request_times_it_and_caches_it(models):
+    engine = SketchEngine(models, threads=1)
+    t = np.linspace(0, 2 * np.pi, 80)
+    strokes = [Stroke(np.stack([200 + 120 * np.cos(t), 150 + 50 * np.sin(t)], 1))]
+    raw = engine.predict(strokes)
+    assert set(raw.timings_ms) == set(STAGES) and raw.timings_ms["refine"] == 0.0
+    refined = engine.predict(strokes, refine=2)
+    assert refined.cached and refined.timings_ms["refine"] > 0.0
+    assert refined.warnings or not np.array_equal(refined.mesh.vertices, raw.mesh.vertices)
+    again = engine.predict(strokes, refine=2)
+    assert again.timings_ms["refine"] == 0.0 and again.mesh is refined.mesh
+    engine.refine_steps = 2
+    assert engine.predict(strokes).mesh is refined.mesh
+    with pytest.raises(ValueError, match="refinement steps"):
+        engine.predict(strokes, refine=-3)
+
+
+def test_engine_sweep_of_degenerate_drawings_never_crashes(models):
+    engine = SketchEngine(models, threads=1, refine_steps=2)
+    t = np.linspace(0, 4 * np.pi, 120)
+    sketches = {
+        "tiny-outline": [Stroke([[100, 100], [104, 100], [104, 103], [100, 100]])],
+        "self-crossing": [Stroke(np.stack([200 + 100 * np.sin(t / 2), 150 + 60 * np.sin(t)], 1))],
+        "straight-line": [Stroke([[10, 10], [300, 12]])],
+    }
+    for name, strokes in sketches.items():
+        pred = engine.predict(rasterize_strokes(strokes))
+        assert np.all(np.isfinite(pred.mesh.vertices)), name
+        assert mesh_stats(pred.mesh)["watertight"], name
+
+
+def test_cli_infer_refine(tmp_path, models):
+    img = np.full((240, 320), 255, np.uint8)
+    cv2.ellipse(img, (160, 120), (140, 60), 0, 0, 360, 0, 3)
+    sketch = tmp_path / "oval.png"
+    cv2.imwrite(str(sketch), img)
+    report = tmp_path / "r.json"
+    run = [sys.executable, "-m", "sketchmesh", "infer", str(sketch), "-o", str(tmp_path / "oval.obj"), "--models",
+           str(models), "--report", str(report)]
+    r = subprocess.run([*run, "--refine", "2"], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert r.returncode == 0, r.stderr
+    rec = json.loads(report.read_text())
+    assert rec["refine_steps"] == 2 and rec["timings_ms"]["refine"] > 0.0 and rec["watertight"] is True
+    assert isinstance(rec["warnings"], list)
+    bad = subprocess.run([*run, "--refine", "-1"], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert bad.returncode == 2 and "--refine" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_depth_of_every_vertex_stays_in_front_of_the_camera():
+    m = _bumpy_sphere(3)
+    cam = sketch_camera(m)
+    res = refine_mesh(m, _ellipse(60, 100), 3, camera=cam)
+    _, depth = pixel_coords(res.mesh.vertices, cam, SIZE)
+    assert np.all(depth > NEAR)
