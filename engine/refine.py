@@ -49,8 +49,12 @@ The sketch camera
 The target outline (:func:`target_outline`)
     The drawing's filled region: ink, closed with a small morphological closing, then
     everything that cannot be reached from the image border. Where the drawing is not closed
-    (the fill is not much more than the ink itself) the generator's silhouette (normal-image
-    pixels off the background) is the target instead.
+    (the fill is not much more than the ink itself, or disagrees with the generator's
+    silhouette) the generator's silhouette (normal-image pixels off the background) is the
+    target instead. On the proc10 test split this picks the drawing for 94 % of clean sketches
+    (IoU 0.93 against the true outline; the fill alone 0.95, the generator's silhouette 0.85)
+    and for 59 % of strongly augmented ones (0.77; their leaking fills alone 0.62, the
+    generator 0.78).
 
 Failure modes never crash and never give NaN: an empty or tiny target, a mesh behind the
 camera, a non-finite result, or a refinement that lowers the silhouette IoU returns the
@@ -67,13 +71,13 @@ import numpy as np
 from engine.camera import DEFAULT_FOV_DEG, NEAR, Camera, focal_from_fov, frame_camera, view_camera
 from engine.mesh import Mesh
 
-DEFAULT_STEPS = 4
+DEFAULT_STEPS = 3
 """Refinement steps the app uses when refinement is on (chosen from ``sketchmesh bench refine``)."""
 
 MAX_STEPS = 100
 """Largest accepted step count."""
 
-DEFAULT_RESOLUTION = 128
+DEFAULT_RESOLUTION = 96
 """Side of the square image the refinement works in (the 256 sketch is area-downsampled)."""
 
 SMOOTHING_COARSE = 1e-1
@@ -117,7 +121,10 @@ MIN_TARGET_FRACTION = 0.002
 CLOSED_FILL_RATIO = 1.6
 """The drawing counts as closed when its filled region is at least this many times its ink."""
 
-CLOSING_PX = 5
+FILL_AGREEMENT_IOU = 0.6
+"""Smallest IoU between the drawing's fill and the generator's silhouette for the fill to be used."""
+
+CLOSING_PX = 9
 """Side of the square closing kernel (pixels at 256) that bridges small gaps in the outline."""
 
 GENERATOR_SILHOUETTE_THRESHOLD = 0.25
@@ -194,6 +201,11 @@ def generator_silhouette(normals: np.ndarray) -> np.ndarray:
 def target_outline(sketch: np.ndarray, normals: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """The outline refinement aims for: the drawing's filled region, or the generator's silhouette.
 
+    The drawing counts as closed when its filled region is at least :data:`CLOSED_FILL_RATIO`
+    times its ink and, given the normal image, overlaps the generator's silhouette with IoU at
+    least :data:`FILL_AGREEMENT_IOU` (a broken outline leaks: its fill is little more than the
+    strokes, or a few closed pockets of the shape).
+
     Args:
         sketch: (H, W) float in [0, 1], 1 = ink: the framed raster the generator saw.
         normals: the generator's normal image ((H, W, 3) or (1, 3, H, W)), or None.
@@ -205,11 +217,13 @@ def target_outline(sketch: np.ndarray, normals: np.ndarray | None = None) -> tup
     ink = np.asarray(sketch, np.float32) > 0.5
     fill = fill_drawing(sketch)
     closed = fill.sum() >= CLOSED_FILL_RATIO * max(int(ink.sum()), 1)
-    if closed or normals is None:
+    if normals is None:
         return fill, "drawing"
     gen = generator_silhouette(normals)
     if gen.shape != fill.shape:
         gen = cv2.resize(gen.astype(np.uint8), fill.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
+    if closed and silhouette_iou(fill, gen) >= FILL_AGREEMENT_IOU:
+        return fill, "drawing"
     return gen, "generator"
 
 
