@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench tradeoff`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -34,6 +34,7 @@ def _lazy(module: str, function: str):
 _cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
 _cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
 _cmd_bench_overfit = _lazy("training.bench.overfit", "main_overfit")
+_cmd_bench_train = _lazy("training.bench.train", "main_bench_train")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 
@@ -52,7 +53,7 @@ def _key_value(text: str) -> tuple[str, object]:
 
 
 def register(commands, bench) -> None:
-    """Add ``bench renderer``, ``bench fit`` and ``bench tradeoff`` to ``bench``, and ``gallery`` to ``commands``."""
+    """Add ``bench renderer``, ``bench fit``, ``bench overfit``, ``bench train`` and ``bench tradeoff`` to ``bench``, and ``gallery`` to ``commands``."""
     p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
@@ -117,6 +118,31 @@ def register(commands, bench) -> None:
     o.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     o.add_argument("--quiet", action="store_true")
     o.set_defaults(func=_cmd_bench_overfit)
+
+    tr = one_line_errors(bench.add_parser(
+        "train",
+        help="end-to-end mesh training throughput at batch 64, per stage, and the rasterizer's own in the same run",
+        description="Times real mesh-mode training steps (loader, predictor, rasterizer, losses, optimizer) on "
+        "--data or on procedural data it builds once, then the rasterizer alone on the same meshes and cameras.",
+    ))
+    tr.add_argument("--data", metavar="DIR", help="dataset folder (its train split; default: build procedural data)")
+    tr.add_argument("--data-out", metavar="DIR", default="data/bench-train",
+                    help="where the procedural data is built once and reused (default data/bench-train)")
+    tr.add_argument("--shapes-per-category", type=int_in(1, 1000), default=2,
+                    help="procedural train shapes per category (default 2: 26 shapes, 624 views)")
+    tr.add_argument("--batch", type=positive_int, default=64)
+    tr.add_argument("--steps", type=int_in(1, 100_000), default=10, help="timed steps (default 10)")
+    tr.add_argument("--warmup", type=int_in(0, 100_000), default=3, help="untimed steps first (default 3)")
+    tr.add_argument("--set", type=_key_value, action="append", metavar="FIELD=VALUE",
+                    help="override a training config field (repeat), e.g. --set predictor_hidden=256")
+    tr.add_argument("--loader", choices=("cache", "npz"), default="cache",
+                    help="cache: the trainer's own training set (the mesh-array cache); npz: every field from the "
+                    "shape files, as before the cache")
+    tr.add_argument("--threads", type=positive_int, default=2, help="torch intra-op threads (default 2)")
+    tr.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
+    tr.add_argument("--json", metavar="PATH", help="write the record as one JSON object")
+    tr.add_argument("--quiet", action="store_true")
+    tr.set_defaults(func=_cmd_bench_train)
 
     t = one_line_errors(bench.add_parser(
         "tradeoff",
