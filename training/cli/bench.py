@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -36,6 +36,7 @@ _cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
 _cmd_bench_overfit = _lazy("training.bench.overfit", "main_overfit")
 _cmd_bench_train = _lazy("training.bench.train", "main_bench_train")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
+_cmd_bench_refine = _lazy("training.evaluation.refine_bench", "main_refine_bench")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 
 
@@ -53,7 +54,7 @@ def _key_value(text: str) -> tuple[str, object]:
 
 
 def register(commands, bench) -> None:
-    """Add ``bench renderer``, ``bench fit``, ``bench overfit``, ``bench train`` and ``bench tradeoff`` to ``bench``, and ``gallery`` to ``commands``."""
+    """Add ``bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff`` and ``bench refine`` to ``bench``, and ``gallery`` to ``commands``."""
     p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
@@ -143,6 +144,26 @@ def register(commands, bench) -> None:
     tr.add_argument("--json", metavar="PATH", help="write the record as one JSON object")
     tr.add_argument("--quiet", action="store_true")
     tr.set_defaults(func=_cmd_bench_train)
+
+    p = one_line_errors(bench.add_parser(
+        "refine", help="refinement to the sketch's outline: silhouette IoU, voxel IoU and latency for N steps",
+        description="For clean and strongly augmented test-split sketches: the bundled (or --models) ONNX pipeline, "
+        "then engine.refine with N steps for each --steps N; silhouette IoU against the target outline and the true "
+        "one, voxel IoU, self-intersections and latency. Writes refine.md, refine.json and refine.png to --out.",
+    ))
+    p.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for refine.md, refine.json, refine.png")
+    p.add_argument("--steps", type=int_in(0, 100), nargs="+", default=[0, 1, 2, 3, 4, 6], metavar="N",
+                   help="refinement step counts (default 0 1 2 3 4 6; 0 = unrefined)")
+    p.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,  # keeps `sketchmesh --models DIR bench refine`
+                   help="model folder (default: the bundled models)")
+    p.add_argument("--styles", nargs="+", choices=("clean", "strong"), default=["clean", "strong"],
+                   help="sketch styles: clean, and strong augmentation (strength 1.0)")
+    p.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="test sketches per style (0: all)")
+    p.add_argument("--threads", type=int_in(1, 256), default=2, help="ONNX Runtime threads (default 2)")
+    p.add_argument("--no-intersections", action="store_true", help="skip counting self-intersections (faster)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cmd_bench_refine)
 
     t = one_line_errors(bench.add_parser(
         "tradeoff",

@@ -1,4 +1,4 @@
-"""``sketchmesh train | eval | export`` and ``bench refine``: cheap to import (argparse only; torch loads inside commands).
+"""``sketchmesh train | eval | export``: cheap to import (argparse only; torch loads inside commands).
 
 Every :class:`training.loop.config.TrainConfig` field has a flag (``--lambda-n 0`` etc.); the config is
 built once here and passed down. Also runnable as ``python -m training.cli.train ...`` (handy
@@ -215,15 +215,6 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return evaluate_cli(args)
 
 
-def _cmd_bench_refine(args: argparse.Namespace) -> int:
-    from training._torch import require_torch
-
-    require_torch()
-    from training.evaluation.refine_bench import main_refine_bench
-
-    return main_refine_bench(args)
-
-
 def _cmd_export(args: argparse.Namespace) -> int:
     from training._torch import require_torch
 
@@ -255,10 +246,7 @@ MAX_VOXEL_RESOLUTION = 256
 
 
 def register(commands, bench) -> None:
-    """Add ``train``, ``eval`` and ``export`` to the top-level sub-parsers and ``refine`` to ``bench`` (see :mod:`sketchmesh.cli`).
-
-    ``bench refine`` sits here, beside ``eval``: it measures accuracy on the test split (and latency).
-    """
+    """Add ``train``, ``eval`` and ``export`` to the top-level sub-parsers (see :mod:`sketchmesh.cli`)."""
     p = commands.add_parser(
         "train", help="train the normal generator, the mesh predictor, or both jointly",
         description="Train (or resume) a run: normals = pix2pix cGAN sketch -> normal image; mesh = mesh "
@@ -295,26 +283,6 @@ def register(commands, bench) -> None:
     p.add_argument("--threads", type=_threads, default=0)
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_eval)
-    one_line_errors(p)
-
-    p = bench.add_parser(
-        "refine", help="refinement to the sketch's outline: silhouette IoU, voxel IoU and latency for N steps",
-        description="For clean and strongly augmented test-split sketches: the bundled (or --models) ONNX pipeline, "
-        "then engine.refine with N steps for each --steps N; silhouette IoU against the target outline and the true "
-        "one, voxel IoU, self-intersections and latency. Writes refine.md, refine.json and refine.png to --out.",
-    )
-    p.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split)")
-    p.add_argument("--out", required=True, metavar="DIR", help="folder for refine.md, refine.json, refine.png")
-    p.add_argument("--steps", type=int_in(0, 100), nargs="+", default=[0, 1, 2, 3, 4, 6], metavar="N",
-                   help="refinement step counts (default 0 1 2 3 4 6; 0 = unrefined)")
-    p.add_argument("--models", metavar="DIR", default=None, help="model folder (default: the bundled models)")
-    p.add_argument("--styles", nargs="+", choices=("clean", "strong"), default=["clean", "strong"],
-                   help="sketch styles: clean, and strong augmentation (strength 1.0)")
-    p.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="test sketches per style (0: all)")
-    p.add_argument("--threads", type=int_in(1, 256), default=2, help="ONNX Runtime threads (default 2)")
-    p.add_argument("--no-intersections", action="store_true", help="skip counting self-intersections (faster)")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=_cmd_bench_refine)
     one_line_errors(p)
 
     p = commands.add_parser("export", help="export a run to the engine's ONNX models (with a parity check)")

@@ -204,7 +204,7 @@ def plot(records: list[dict], path: str | Path) -> None:
 
 def main_refine_bench(args: argparse.Namespace) -> int:
     load_start = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    records = run_refine_bench(args.data, steps=tuple(args.steps), models_dir=args.models, max_samples=args.max_samples,
+    records = run_refine_bench(args.data, steps=tuple(args.steps), models_dir=getattr(args, "models", None), max_samples=args.max_samples,
                                threads=args.threads, styles=tuple(args.styles),
                                self_intersections=not args.no_intersections, progress=not args.quiet)
     out = Path(args.out)
