@@ -31,7 +31,10 @@ Figures: ``samples_per_s`` = batch x timed steps / their wall time (data include
 ``stages_ms``: mean milliseconds per step of each stage. On a shared machine they move with
 the load; the record carries ``os.getloadavg()`` taken before and after, and the same figures
 in process CPU time (all threads: ``samples_per_cpu_s``, ``renderer_views_per_cpu_s``,
-``step_cpu_ms``, ``stages_cpu_ms``), which other jobs disturb less.
+``step_cpu_ms``, ``stages_cpu_ms``), which other jobs disturb less, and the median and fastest
+step (``step_ms_median``, ``step_ms_min``). With two torch threads, a job on the other core
+can stall every parallel region of the rasterizer's many small operations: its time has been
+seen to move ten-fold between runs on the same meshes.
 
 Data: ``--data DIR`` (its train split), else ``--shapes-per-category`` procedural
 train-split shapes of every category built once (resumably) into ``--data-out``. ``--loader
@@ -327,6 +330,7 @@ def run_bench(cfg, *, train_set=None, steps: int = DEFAULT_STEPS, warmup: int = 
         del data_iter
     views_per_sample = 1 + cfg.extra_views
     samples_per_s = cfg.batch * steps / wall
+    step_s = [sum(x) for x in zip(*per_stage.values())]  # data + step, per timed step
     stages_ms = {k: round(1000.0 * statistics.fmean(v), 2) for k, v in per_stage.items()}
     return {
         "benchmark": "train",
@@ -344,6 +348,8 @@ def run_bench(cfg, *, train_set=None, steps: int = DEFAULT_STEPS, warmup: int = 
         "views_per_s": round(samples_per_s * views_per_sample, 3),
         "renderer_views_per_s": round(renderer_vps, 3),
         "step_ms": round(1000.0 * wall / steps, 2),
+        "step_ms_median": round(1000.0 * statistics.median(step_s), 2),
+        "step_ms_min": round(1000.0 * min(step_s), 2),
         "stages_ms": stages_ms,
         "samples_per_cpu_s": round(cfg.batch * steps / max(cpu, 1e-9), 3),
         "renderer_views_per_cpu_s": round(renderer_vpcs, 3),
@@ -373,7 +379,8 @@ def format_record(r: dict) -> str:
     for name, v in groups:
         lines.append(f"  {name:<22} {v:>9.1f} {100.0 * v / max(total, 1e-9):>6.1f}%")
     lines.append(f"  {'(stages in detail)':<22} " + ", ".join(f"{k} {v:.1f}" for k, v in s.items()))
-    lines.append(f"  step {r['step_ms']:.1f} ms: {r['samples_per_s']:.1f} samples/s, {r['views_per_s']:.1f} views/s "
+    lines.append(f"  step {r['step_ms']:.1f} ms (median {r['step_ms_median']:.1f}, fastest {r['step_ms_min']:.1f}): "
+                 f"{r['samples_per_s']:.1f} samples/s, {r['views_per_s']:.1f} views/s "
                  f"end to end; the rasterizer alone {r['renderer_views_per_s']:.1f} views/s (forward + backward, "
                  f"same meshes and cameras); end to end / rasterizer = "
                  f"{r['views_per_s'] / max(r['renderer_views_per_s'], 1e-9):.2f}")
