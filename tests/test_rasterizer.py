@@ -126,6 +126,27 @@ def test_silhouette_gradient_reaches_only_silhouette_edge_vertices(level):
     assert len(moved) >= 0.3 * len(sil), f"only {len(moved)} of {len(sil)} silhouette vertices moved"
 
 
+def test_face_adjacency_matches_a_dict_of_edges_and_marks_boundaries():
+    m = icosphere(2)
+    faces = np.asarray(m.faces)[1:]  # one face removed: its three edges become boundary edges
+    nb, nbe = R.face_adjacency(torch.from_numpy(faces))
+    owners: dict = {}
+    for fid, tri in enumerate(faces.tolist()):
+        for k in range(3):
+            a, b = tri[(k + 1) % 3], tri[(k + 2) % 3]
+            owners.setdefault((min(a, b), max(a, b)), []).append((fid, k))
+    boundary = 0
+    for (a, b), fs in owners.items():
+        if len(fs) == 1:
+            boundary += 1
+            f, k = fs[0]
+            assert int(nb[f, k]) == -1 and int(nbe[f, k]) == -1
+        else:
+            (f, k), (g, j) = fs
+            assert (int(nb[f, k]), int(nbe[f, k])) == (g, j) and (int(nb[g, j]), int(nbe[g, j])) == (f, k)
+    assert boundary == 3
+
+
 # ---- interior gradients vs finite differences --------------------------------------------
 
 

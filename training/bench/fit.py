@@ -320,6 +320,11 @@ def load_target_mesh(path: str) -> Mesh:
     return mesh
 
 
+def _fit_options(args) -> dict:
+    """The optional fit settings given on the command line (``--normal-region``, ``--smoothing``, ``--lr``)."""
+    return {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+
+
 def _int_arg(args, name: str, lo: int, hi: int, default: int) -> int:
     value = getattr(args, name, None)
     value = default if value is None else value
@@ -378,9 +383,8 @@ def main_fit(args) -> int:
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        extra = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
         result = fit_mesh(target, views=views, iters=iters, resolution=resolution, seed=seed, progress=True, level=level,
-                          **extra)
+                          **_fit_options(args))
     finally:
         torch.set_num_threads(before)
     print(f"fit: {target_path} ({target.num_vertices} vertices, {target.num_faces} faces) "
@@ -440,7 +444,7 @@ def main_fit_procedural(args) -> int:
     seed = _int_arg(args, "seed", 0, 2**31 - 1, 0)
     level = _int_arg(args, "level", 0, 5, PAPER_LEVEL)
     threads = _int_arg(args, "threads", 1, 256, DEFAULT_FIT_THREADS)
-    extra = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+    extra = _fit_options(args)
     json_path = getattr(args, "json", None)
     targets = procedural_targets(per_category)
     before = torch.get_num_threads()

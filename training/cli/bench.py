@@ -111,7 +111,8 @@ def register(commands, bench) -> None:
     o.add_argument("--batch", type=positive_int, default=32)
     o.add_argument("--set", type=_key_value, action="append", metavar="FIELD=VALUE",
                    help="override a training config field (repeat), e.g. --set lr_mesh=3e-4")
-    o.add_argument("--fit-iters", type=int_in(0, 100_000), default=600)
+    o.add_argument("--fit-iters", type=int_in(0, 100_000), default=None,
+                   help="direct-fit iterations per shape (default: bench fit's; 0 skips the fit and the verdict)")
     o.add_argument("--fit-lr", type=float_in(1e-6, 10.0), default=None)
     o.add_argument("--fit-smoothing", type=float_in(0.0, 1e4), default=None)
     o.add_argument("--fit-normal-region", choices=("image", "target"), default=None)

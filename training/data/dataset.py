@@ -574,6 +574,18 @@ except ImportError:  # pragma: no cover
     _DatasetBase = object
 
 
+def _mesh_fields(torch, n64, s64, cams, row, others) -> dict:
+    """The mesh-step tensors of one item: row ``row`` of the (views, ...) arrays and rows ``others``."""
+    return {
+        "normals64": torch.from_numpy(np.ascontiguousarray(n64[row].transpose(2, 0, 1), np.float32)),
+        "silhouette64": torch.from_numpy(s64[row].astype(np.float32)),
+        "camera": torch.from_numpy(cams[row].astype(np.float64)),
+        "other_normals64": torch.from_numpy(np.ascontiguousarray(n64[others].transpose(0, 3, 1, 2), np.float32)),
+        "other_silhouette64": torch.from_numpy(s64[others].astype(np.float32)),
+        "other_cameras": torch.from_numpy(cams[others].astype(np.float64)),
+    }
+
+
 class ShapeViewDataset(_DatasetBase):
     """One item per (shape, view) of a split: sketch, normal images, silhouettes, cameras, other views.
 
@@ -586,6 +598,7 @@ class ShapeViewDataset(_DatasetBase):
         seed: augmentation / extra-view seed; item i always gets the same augmentation and the
             same other views (deterministic in (seed, i), independent of the epoch).
         categories: restrict to these categories (default all in the dataset).
+        shape_ids: restrict to these shape ids (default all); an id not in the split is an error.
         fields: ``"all"`` (every key below) or ``"mesh"`` (only what a mesh-mode step reads:
             ``normals64``, ``silhouette64``, ``camera``, their ``other_*`` and the names; no
             sketch is loaded or augmented, ``augment_strength`` is not used).
@@ -609,8 +622,8 @@ class ShapeViewDataset(_DatasetBase):
     MESH_CACHES = ("auto", "disk", "memory", "none")
 
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
-                 seed: int = 0, categories: Sequence[str] | None = None, fields: str = "all",
-                 mesh_cache: str = "auto") -> None:
+                 seed: int = 0, categories: Sequence[str] | None = None, shape_ids: Sequence[str] | None = None,
+                 fields: str = "all", mesh_cache: str = "auto") -> None:
         self.root = Path(root)
         if split not in ("train", "val", "test", "all"):
             raise DatasetError(f"split must be 'train', 'val', 'test' or 'all', got {split!r}")
@@ -636,6 +649,11 @@ class ShapeViewDataset(_DatasetBase):
         self.augment_strength = float(augment_strength)
         self.seed = int(seed)
         self._shapes = [s for s in self.manifest["shapes"] if s["category"] in wanted and (split == "all" or s["split"] == split)]
+        if shape_ids is not None:
+            missing = sorted(set(shape_ids) - {s["shape_id"] for s in self._shapes})
+            if missing:
+                raise DatasetError(f"shapes {missing} are not in the {split} split of {self.root}")
+            self._shapes = [s for s in self._shapes if s["shape_id"] in set(shape_ids)]
         self.categories = sorted({s["category"] for s in self._shapes})
         self._items = [(si, v) for si, s in enumerate(self._shapes) for v in range(int(s["num_views"]))]
         self._by_id = {(s["category"], s["shape_id"]): s for s in self._shapes}
@@ -664,13 +682,16 @@ class ShapeViewDataset(_DatasetBase):
     def _path(self, rec: dict) -> str:
         return str(self.root / rec["file"])
 
-    def load_mesh(self, category: str, shape_id: str) -> Mesh:
-        """The shape's normalised mesh (world frame, as rendered)."""
+    def shape_array(self, category: str, shape_id: str, key: str) -> np.ndarray:
+        """One stored array of a shape (e.g. ``"cameras"`` (views, 16), ``"silhouette64"``), as on disk."""
         rec = self._by_id.get((category, shape_id))
         if rec is None:
             raise DatasetError(f"shape {category}/{shape_id} is not in this dataset ({self.split} split)")
-        p = self._path(rec)
-        return Mesh(self._cache.get(p, "vertices"), self._cache.get(p, "faces"))
+        return self._cache.get(self._path(rec), key)
+
+    def load_mesh(self, category: str, shape_id: str) -> Mesh:
+        """The shape's normalised mesh (world frame, as rendered)."""
+        return Mesh(self.shape_array(category, shape_id, "vertices"), self.shape_array(category, shape_id, "faces"))
 
     def other_views(self, i: int) -> np.ndarray:
         """(K,) the other view indices item i returns: distinct where possible, deterministic in (seed, i)."""
@@ -736,17 +757,8 @@ class ShapeViewDataset(_DatasetBase):
             else:
                 p = self._path(rec)
                 n64, s64, cams = (self._cache.get(p, k) for k in ("normals64", "silhouette64", "cameras"))
-            return {
-                "normals64": torch.from_numpy(np.ascontiguousarray(n64[v].transpose(2, 0, 1), np.float32)),
-                "silhouette64": torch.from_numpy(s64[v].astype(np.float32)),
-                "camera": torch.from_numpy(cams[v].astype(np.float64)),
-                "other_normals64": torch.from_numpy(np.ascontiguousarray(n64[others].transpose(0, 3, 1, 2), np.float32)),
-                "other_silhouette64": torch.from_numpy(s64[others].astype(np.float32)),
-                "other_cameras": torch.from_numpy(cams[others].astype(np.float64)),
-                "category": rec["category"],
-                "shape_id": rec["shape_id"],
-                "view": int(self._items[i][1]),
-            }
+            return {**_mesh_fields(torch, n64, s64, cams, v, others), "category": rec["category"],
+                    "shape_id": rec["shape_id"], "view": int(self._items[i][1])}
         p = self._path(rec)
         get = self._cache.get
         if self.augment_strength > 0:
@@ -763,12 +775,7 @@ class ShapeViewDataset(_DatasetBase):
             "sketch": torch.from_numpy(np.ascontiguousarray(sketch, np.float32)[None]),
             "normals": torch.from_numpy(get(p, "normals256")[v].astype(np.float32).transpose(2, 0, 1) / 255.0),
             "silhouette": torch.from_numpy(get(p, "silhouette256")[v].astype(np.float32)[None]),
-            "normals64": torch.from_numpy(np.ascontiguousarray(n64[v].transpose(2, 0, 1), np.float32)),
-            "silhouette64": torch.from_numpy(s64[v].astype(np.float32)),
-            "camera": torch.from_numpy(cams[v].astype(np.float64)),
-            "other_normals64": torch.from_numpy(np.ascontiguousarray(n64[others].transpose(0, 3, 1, 2), np.float32)),
-            "other_silhouette64": torch.from_numpy(s64[others].astype(np.float32)),
-            "other_cameras": torch.from_numpy(cams[others].astype(np.float64)),
+            **_mesh_fields(torch, n64, s64, cams, v, others),
             "category": rec["category"],
             "shape_id": rec["shape_id"],
             "view": int(v),

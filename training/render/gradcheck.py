@@ -30,7 +30,7 @@ import torch
 
 from engine.camera import Camera
 from engine.mesh import Mesh
-from training.render.rasterize import cameras_to_tensor, project_vertices, rasterize
+from training.render.rasterize import cameras_to_tensor, face_adjacency, project_vertices, rasterize
 
 __all__ = ["GradCheck", "silhouette_gradient_check", "silhouette_edge_vertices"]
 
@@ -57,27 +57,24 @@ class GradCheck:
     vertices: int
 
 
-def silhouette_edge_vertices(vertices: np.ndarray, faces: np.ndarray, screen: np.ndarray) -> np.ndarray:
+def silhouette_edge_vertices(faces: np.ndarray, screen: np.ndarray) -> np.ndarray:
     """Vertices of screen-space silhouette edges: edges whose two faces face opposite ways on screen.
 
     Args:
-        vertices: (V, 3) (only its length is used); faces: (F, 3) int; screen: (V, 2) pixel coordinates.
+        faces: (F, 3) int; screen: (V, 2) pixel coordinates.
 
     Returns:
         (K,) int64 sorted vertex indices.
     """
+    faces = np.asarray(faces, dtype=np.int64)
     d1 = screen[faces[:, 1]] - screen[faces[:, 0]]
     d2 = screen[faces[:, 2]] - screen[faces[:, 0]]
     orient = np.sign(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    fid = np.tile(np.arange(len(faces)), 3)
-    key = np.sort(e, axis=1)
-    order = np.lexsort((key[:, 1], key[:, 0]))
-    key, fid = key[order], fid[order]
-    same = np.all(key[1:] == key[:-1], axis=1)
-    pairs = np.nonzero(same)[0]
-    fold = orient[fid[pairs]] != orient[fid[pairs + 1]]
-    return np.unique(key[pairs[fold]].ravel()).astype(np.int64)
+    neighbour = face_adjacency(torch.from_numpy(faces))[0].numpy()  # (F, 3), edge k opposite vertex k
+    f, k = np.nonzero(neighbour >= 0)
+    fold = orient[f] != orient[neighbour[f, k]]
+    ends = np.stack([faces[f, (k + 1) % 3], faces[f, (k + 2) % 3]], axis=1)
+    return np.unique(ends[fold]).astype(np.int64)
 
 
 def _zoomed(cam: np.ndarray, S: int, x0: float, y0: float, width: float) -> np.ndarray:
@@ -134,7 +131,7 @@ def silhouette_gradient_check(
     _, screen, inv_w, _ = project_vertices(v[None], cam, image_size)
     screen = screen[0].numpy()
     moved = np.nonzero(np.abs(approx["grow"]).sum(1) + np.abs(approx["shrink"]).sum(1) > 0)[0]
-    cand = np.union1d(silhouette_edge_vertices(mesh.vertices, np.asarray(mesh.faces), screen), moved)
+    cand = np.union1d(silhouette_edge_vertices(np.asarray(mesh.faces), screen), moved)
     if cand.size == 0:
         raise ValueError("the mesh shows no silhouette from this camera; nothing to check")
     rng = np.random.default_rng(seed)
