@@ -10,7 +10,9 @@ Document (UTF-8 JSON)::
 Writes are atomic (engine.fileio). The autosave file lives in ``QStandardPaths
 AppDataLocation`` (or a folder given by the caller, as tests do) and is written a short
 debounce after each change, removed when the user saves or discards, and offered for
-restore on the next start when it is still there (a crash or a kill). Autosave writes and
+restore on the next start when it is still there (a crash or a kill). A kill in the middle of
+an autosave leaves the last complete file intact and a half-written temporary sibling
+(``.autosave.sketch.json.XXXX.tmp``), which the next start deletes. Autosave writes and
 removals run in order on a thread of their own (:class:`app.jobs.JobQueue`), never on the UI
 thread; a background image is PNG-encoded once per layer, not once per autosave.
 """
@@ -32,7 +34,7 @@ from app.canvas import BackgroundLayer, ink_to_qimage, qimage_to_ink
 from app.history import SketchState
 from app.jobs import WAIT_MS, JobQueue
 from engine.errors import SketchInputError
-from engine.fileio import atomic_write_text
+from engine.fileio import atomic_write_text, remove_stale_temporaries
 from engine.strokes import Stroke
 
 SKETCH_FORMAT = "sketchmesh-sketch"
@@ -149,6 +151,10 @@ def default_autosave_dir() -> Path:
 class Autosaver(QObject):
     """Debounced atomic autosave of a sketch state into ``folder / AUTOSAVE_NAME``.
 
+    On creation it deletes the temporary files an earlier, killed session's autosave left in
+    ``folder`` (only the autosave's own, ``.autosave.sketch.json.*.tmp``), on its writer thread
+    before any write of its own.
+
     Signals:
         saved(str): the path written.
         failed(str): a one-line message (the app shows it; drawing goes on).
@@ -169,6 +175,10 @@ class Autosaver(QObject):
         self._jobs = JobQueue("sketchmesh-autosave", self)
         self._generation = 0  # bumped by discard(): writes queued before it are skipped
         self.write_count = 0
+        self.stale_removed: list[Path] = []
+        """Temporary files of a killed session's autosave deleted at start (filled in once that job is done)."""
+        self._jobs.submit(lambda: remove_stale_temporaries(self.folder, AUTOSAVE_NAME), self.stale_removed.extend,
+                          lambda msg: self.failed.emit(f"Could not remove a stale autosave file: {msg}"))
 
     def schedule(self, state: SketchState, canvas_size: tuple[int, int]) -> None:
         """Remember the latest state; write it after the debounce delay."""

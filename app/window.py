@@ -191,12 +191,14 @@ class MainWindow(QMainWindow):
         inferenceFailed(int, str): the newest request failed (request id, message).
         exportFinished(str, str): a mesh export ended (path, error message or "").
         sketchOpened(str, str): opening a file ended (path, error message or "").
+        modelsLoaded(str, str): a :meth:`load_models` ended (folder, error message or "").
     """
 
     meshUpdated = Signal(int)
     inferenceFailed = Signal(int, str)
     exportFinished = Signal(str, str)
     sketchOpened = Signal(str, str)
+    modelsLoaded = Signal(str, str)
 
     def __init__(
         self,
@@ -217,6 +219,8 @@ class MainWindow(QMainWindow):
         self._saved_state: SketchState | None = None
         self._last_prediction = None
         self._model_problem: str | None = None
+        self._models_pending: tuple[int, Path, bool] | None = None
+        """(load token, folder, remember) of the model folder loading on the worker."""
         self._force_close = False
         self._closed = False
 
@@ -264,6 +268,8 @@ class MainWindow(QMainWindow):
         self.controller.predictionFailed.connect(self._on_failure)
         self.controller.cleared.connect(self._on_cleared)
         self.controller.busyChanged.connect(self._on_busy)
+        self.controller.engineLoaded.connect(self._on_models_loaded)
+        self.controller.engineLoadFailed.connect(self._on_models_failed)
         self.latency_probe = EventLoopLatencyProbe(10, self)
         self.last_lag_ms: float | None = None
         """Largest event-loop lateness measured during the last inference (ms)."""
@@ -447,19 +453,43 @@ class MainWindow(QMainWindow):
         return self._model_problem
 
     def load_models(self, folder: str | os.PathLike, *, remember: bool = True) -> bool:
-        """Use the models in ``folder``; on failure the status bar says why. Returns success."""
+        """Use the models in ``folder``; on failure the status bar says why, naming the folder.
+
+        With no models in use (at start), the new engine is used at once and its models load
+        on the worker (broken ones are reported as an inference failure). With models in use,
+        the new folder's models are loaded and validated on the worker first, and replace the
+        ones in use only when that succeeds; until then, and when it fails, the models in use
+        keep answering. ``modelsLoaded(folder, error)`` follows either way.
+
+        Returns False when ``folder`` is refused at once (no models in it), else True.
+        """
         folder = Path(folder).expanduser()
         try:
-            engine = self._engine_factory(folder)
+            engine = self._engine_factory(folder)  # cheap: checks the files, loads nothing
         except SketchmeshError as exc:
             if self.engine is not None:  # keep working with the models already loaded
                 self.show_message(f"{exc} (still using {self.model_label.toolTip()})")
-                return False
-            self._model_problem = str(exc)
-            self.model_label.setText("Model: none")
-            self.model_label.setToolTip(str(folder))
-            self.show_message(str(exc))
+            else:
+                self._model_problem = str(exc)
+                self.model_label.setText("Model: none")
+                self.model_label.setToolTip(str(folder))
+                self.show_message(str(exc))
+            self.modelsLoaded.emit(str(folder), str(exc))
             return False
+        if self.engine is None:
+            self._use_engine(engine, folder, remember)
+            if self.canvas.is_empty:
+                self.controller.preload()  # create the ONNX sessions now, on the worker
+            return True
+        token = self.controller.load_engine(engine)
+        if token is None:  # closing
+            return False
+        self._models_pending = (token, folder, remember)
+        self.show_message(f"Loading models from {folder}...")
+        return True
+
+    def _use_engine(self, engine: object, folder: Path, remember: bool) -> None:
+        """Switch to ``engine`` (the models of ``folder``) and redo the current sketch with it."""
         self._model_problem = None
         self.controller.set_engine(engine)
         self._apply_refine()
@@ -470,9 +500,28 @@ class MainWindow(QMainWindow):
         self.show_message(f"Models from {folder}")
         if not self.canvas.is_empty:
             self._request_inference()
-        else:
-            self.controller.preload()  # create the ONNX sessions now, on the worker
-        return True
+        self.modelsLoaded.emit(str(folder), "")
+
+    def _take_pending_models(self, token: int) -> tuple[Path, bool] | None:
+        pending = self._models_pending
+        if pending is None or pending[0] != token or self._closed:
+            return None
+        self._models_pending = None
+        return pending[1], pending[2]
+
+    def _on_models_loaded(self, token: int, engine: object) -> None:
+        pending = self._take_pending_models(token)
+        if pending is not None:
+            self._use_engine(engine, *pending)
+
+    def _on_models_failed(self, token: int, message: str) -> None:
+        pending = self._take_pending_models(token)
+        if pending is None:
+            return
+        folder = pending[0]
+        why = message.replace(f"{folder}{os.sep}", "")  # the folder is named once, up front
+        self.show_message(f"Could not load models from {folder}: {why} (still using {self.model_label.toolTip()})")
+        self.modelsLoaded.emit(str(folder), message)
 
     def load_models_dialog(self) -> None:
         start = self.settings.models_dir or str(bundled_models_dir())

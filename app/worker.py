@@ -12,6 +12,12 @@ composite (:class:`app.canvas.CanvasComposite`) is rendered and framed on the wo
 worker makes the two thumbnails the window shows (:class:`Thumbnails`, fetched with
 :meth:`InferenceController.take_thumbnails`).
 
+A new model folder is loaded the same way: :meth:`InferenceController.load_engine` hands a
+candidate engine to the worker, which creates and validates its ONNX Runtime sessions there
+(queued behind the requests already sent, never skipped as stale); the engine in use keeps
+answering until the caller switches with :meth:`InferenceController.set_engine` on
+``engineLoaded``, and stays in use on ``engineLoadFailed``.
+
 :class:`EventLoopLatencyProbe` measures how late a short repeating QTimer fires on the GUI
 thread: the UI's responsiveness while inference runs (a debug figure, and a test).
 """
@@ -142,6 +148,23 @@ _ORPHANS: list[tuple[QThread, QObject]] = []
 """Worker threads still finishing an inference after their controller shut down."""
 
 
+def load_engine_models(engine: object) -> str | None:
+    """Load ``engine``'s models (``engine.load()``, when it has one) and warm the lazy imports;
+    the one-line reason on failure, None on success. Any thread; never raises."""
+    try:
+        load = getattr(engine, "load", None)
+        if load is not None:
+            load()
+        warm_imports()
+    except SketchmeshError as exc:
+        return str(exc)
+    except MemoryError:
+        return "out of memory while loading the models"
+    except Exception as exc:  # a broken model must not kill the worker
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
 def _release_orphan(thread: QThread) -> None:
     _ORPHANS[:] = [(t, w) for t, w in _ORPHANS if t is not thread]
 
@@ -154,12 +177,16 @@ class InferenceWorker(QObject):
         errorOccurred(int, str): (request_id, one-line message).
         skipped(int): a request superseded before it started.
         loaded(int): a preload request (:data:`PRELOAD`) finished without error.
+        engineLoaded(int, object): (token, engine) a candidate engine's models loaded (:meth:`load_engine`).
+        engineFailed(int, str): (token, one-line message) they did not.
     """
 
     resultReady = Signal(int, object)
     errorOccurred = Signal(int, str)
     skipped = Signal(int)
     loaded = Signal(int)
+    engineLoaded = Signal(int, object)
+    engineFailed = Signal(int, str)
 
     def __init__(self) -> None:
         super().__init__()
@@ -190,17 +217,11 @@ class InferenceWorker(QObject):
             return
         self.thread_ids.add(threading.get_ident())
         if sketch is PRELOAD:
-            try:
-                load = getattr(engine, "load", None)
-                if load is not None:
-                    load()
-                warm_imports()
-            except SketchmeshError as exc:
-                self.errorOccurred.emit(request_id, str(exc))
-            except Exception as exc:  # a broken model must not kill the worker
-                self.errorOccurred.emit(request_id, f"{type(exc).__name__}: {exc}")
-            else:
+            problem = load_engine_models(engine)
+            if problem is None:
                 self.loaded.emit(request_id)
+            else:
+                self.errorOccurred.emit(request_id, problem)
             return
         try:
             from app.canvas import CanvasComposite  # noqa: PLC0415
@@ -221,6 +242,22 @@ class InferenceWorker(QObject):
             self.resultReady.emit(request_id, (prediction, thumbs))
 
 
+    @Slot(int, object)
+    def load_engine(self, token: int, engine: object) -> None:
+        """Load a candidate engine's models here, off the GUI thread; never skipped as stale
+        (only by :meth:`stop`), since a stroke drawn meanwhile must not cancel a model load."""
+        with self._lock:
+            stopping = self._stopping
+        if stopping:
+            return
+        self.thread_ids.add(threading.get_ident())
+        problem = load_engine_models(engine)
+        if problem is None:
+            self.engineLoaded.emit(token, engine)
+        else:
+            self.engineFailed.emit(token, problem)
+
+
 class InferenceController(QObject):
     """GUI-thread side: debounce, request ids, stale dropping, worker thread lifetime.
 
@@ -228,14 +265,19 @@ class InferenceController(QObject):
         predictionReady(int, object): the newest request's Prediction.
         predictionFailed(int, str): the newest request's error message.
         cleared(): the sketch became empty (the viewport should show nothing).
-        busyChanged(bool): whether a request is outstanding.
+        busyChanged(bool): whether a request or a model load is outstanding.
+        engineLoaded(int, object): (token, engine) the newest :meth:`load_engine` succeeded.
+        engineLoadFailed(int, str): (token, one-line message) the newest :meth:`load_engine` failed.
     """
 
     predictionReady = Signal(int, object)
     predictionFailed = Signal(int, str)
     cleared = Signal()
     busyChanged = Signal(bool)
+    engineLoaded = Signal(int, object)
+    engineLoadFailed = Signal(int, str)
     _request = Signal(int, object, object)
+    _loadRequest = Signal(int, object)
 
     def __init__(
         self,
@@ -251,6 +293,8 @@ class InferenceController(QObject):
         self._next_id = 0
         self._latest_id = 0
         self._outstanding: set[int] = set()
+        self._loading: set[int] = set()
+        self._load_token = 0
         self._provider: Callable[[], SketchInput | None] | None = None
         self.dropped_count = 0
         """Results that arrived for a superseded request and were dropped."""
@@ -274,6 +318,9 @@ class InferenceController(QObject):
         self._worker.errorOccurred.connect(self._on_error, Qt.ConnectionType.QueuedConnection)
         self._worker.skipped.connect(self._on_skipped, Qt.ConnectionType.QueuedConnection)
         self._worker.loaded.connect(self._on_loaded, Qt.ConnectionType.QueuedConnection)
+        self._loadRequest.connect(self._worker.load_engine, Qt.ConnectionType.QueuedConnection)
+        self._worker.engineLoaded.connect(self._on_engine_loaded, Qt.ConnectionType.QueuedConnection)
+        self._worker.engineFailed.connect(self._on_engine_failed, Qt.ConnectionType.QueuedConnection)
         self._thread.start()
         self._shut_down = False
 
@@ -297,7 +344,12 @@ class InferenceController(QObject):
 
     @property
     def busy(self) -> bool:
-        return bool(self._outstanding) or self._debounce.isActive()
+        return bool(self._outstanding) or bool(self._loading) or self._debounce.isActive()
+
+    @property
+    def loading(self) -> bool:
+        """A :meth:`load_engine` is still running (or queued) on the worker."""
+        return bool(self._loading)
 
     def set_debounce_ms(self, ms: int) -> None:
         self._debounce.setInterval(int(ms))
@@ -369,6 +421,23 @@ class InferenceController(QObject):
         self._request.emit(rid, self._engine, PRELOAD)
         return rid
 
+    def load_engine(self, engine: object) -> int | None:
+        """Load ``engine``'s models on the worker without using it yet; returns a token.
+
+        The engine in use keeps answering requests meanwhile (those sent before this call are
+        answered first; later ones wait for the load). ``engineLoaded(token, engine)`` or
+        ``engineLoadFailed(token, message)`` follows, only for the newest call (an older load's
+        answer is dropped); switch with :meth:`set_engine`. None once shut down.
+        """
+        if self._shut_down:
+            return None
+        self._load_token += 1
+        token = self._load_token
+        self._loading.add(token)
+        self.busyChanged.emit(True)
+        self._loadRequest.emit(token, engine)
+        return token
+
     def _invalidate(self) -> int:
         self._next_id += 1
         self._latest_id = self._next_id
@@ -382,7 +451,7 @@ class InferenceController(QObject):
         fresh = request_id == self._latest_id
         if fresh and sent is not None:
             self.last_roundtrip_ms = (time.perf_counter() - sent) * 1e3
-        if not self._outstanding:
+        if not self._outstanding and not self._loading:
             self.busyChanged.emit(False)
         return fresh
 
@@ -411,6 +480,23 @@ class InferenceController(QObject):
     def _on_loaded(self, request_id: int) -> None:
         self._finish(request_id)
         self.last_roundtrip_ms = None  # a load is not an inference: no live-drawing estimate from it
+
+    def _finish_load(self, token: int) -> bool:
+        """Bookkeeping for a load's answer; returns True when it is the newest load's."""
+        self._loading.discard(token)
+        if not self._outstanding and not self._loading:
+            self.busyChanged.emit(False)
+        return token == self._load_token and not self._shut_down
+
+    @Slot(int, object)
+    def _on_engine_loaded(self, token: int, engine: object) -> None:
+        if self._finish_load(token):
+            self.engineLoaded.emit(token, engine)
+
+    @Slot(int, str)
+    def _on_engine_failed(self, token: int, message: str) -> None:
+        if self._finish_load(token):
+            self.engineLoadFailed.emit(token, message)
 
     @Slot(int)
     def _on_skipped(self, request_id: int) -> None:

@@ -4,8 +4,8 @@ Runs the real window under the current display (use xvfb-run), opens a sample sk
 waits for the mesh, then exercises every viewport feature (each view preset, wireframe on
 and off, reset, a screenshot, a mesh export in every format), and writes the basenames of
 the ``vtkmodules`` files mapped into the process to ``packaging/vtk_runtime_libs.txt``. The
-spec ships only those VTK binaries. Rerun it after upgrading VTK or pyvista, or after the
-app starts using a new VTK feature:
+spec ships only those VTK binaries. Rerun it after upgrading VTK, or after the app starts
+using a new VTK feature:
 
     xvfb-run -a python packaging/list_vtk_libs.py --models DIR
 """

@@ -1,7 +1,8 @@
 """Test-wide setup: a private Xvfb display for GUI tests, and headless-safe Qt/VTK settings.
 
-GUI tests need a real X server (the pyvistaqt viewport renders nothing offscreen); if
-DISPLAY is unset and Xvfb is installed, one is started for the session and stopped after.
+GUI tests need a real X server (they show real windows, and ``--screenshot`` refuses Qt's
+offscreen platform: app/window.py ``check_display``); if DISPLAY is unset and Xvfb is
+installed, one is started for the session and stopped after.
 """
 
 from __future__ import annotations

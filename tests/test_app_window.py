@@ -283,23 +283,30 @@ def test_real_engine_on_fixture_models_and_engine_errors_in_status_bar(qtbot, ma
     assert mesh.num_vertices == 642
     assert np.abs(np.linalg.norm(mesh.vertices, axis=1) - 0.5).max() < 0.1  # fixture stays near the sphere
     assert "predictor" in w.status_text()
-    # a broken model folder chosen later: the error shows, the app keeps running
+    # a broken model folder chosen later: the error shows, the working models stay in use
+    working = w.engine
     empty = tmp_path / "empty"
     empty.mkdir()
     assert not w.load_models(empty)  # a wrong folder: say so, keep the working models
-    assert w.engine is not None and no_models_message(empty) in w.status_text() and "still using" in w.status_text()
+    assert w.engine is working and no_models_message(empty) in w.status_text() and "still using" in w.status_text()
     broken = tmp_path / "broken"
     broken.mkdir()
     for name in ("generator.onnx", "mesh_predictor.onnx"):
         (broken / name).write_bytes(b"not an onnx model")
     w.actions["clear"].trigger()
-    with qtbot.waitSignal(w.inferenceFailed, timeout=WAIT_MS) as blocker:
-        assert w.load_models(broken)  # preloading reports the broken files before anyone draws
-    assert "broken" in blocker.args[1] and blocker.args[1] in w.status_text()
-    with qtbot.waitSignal(w.inferenceFailed, timeout=WAIT_MS):
-        draw_stroke(w.canvas, line_points(60, 300, 300, 80))
-    assert "Inference failed" in w.status_text()
+    with qtbot.waitSignal(w.modelsLoaded, timeout=WAIT_MS) as blocker:
+        assert w.load_models(broken)  # loaded and validated on the worker before anything switches
+    assert blocker.args[0] == str(broken) and "cannot load model" in blocker.args[1]
+    assert f"Could not load models from {broken}" in w.status_text() and "still using" in w.status_text()
+    assert w.engine is working
+    _draw_and_wait(qtbot, w, line_points(60, 300, 300, 80))  # the working models still answer
     assert len(w.canvas.strokes()) == 1 and w.isVisible()
+    # a good folder replaces them once its models are loaded (on the worker), and redoes the sketch
+    other = write_fixture_models(tmp_path / "other_models")
+    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+        assert w.load_models(other)
+        assert w.engine is working and "Loading models from" in w.status_text()
+    assert w.engine is not working and w.engine.is_loaded and "Model: other_models" in w.status_text()
 
 
 def test_keyboard_shortcuts_undo_redo(qtbot, make_window):

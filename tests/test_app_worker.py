@@ -251,6 +251,39 @@ def test_preload_loads_on_the_worker_and_reports_broken_models(qtbot, controller
     assert not c.busy
 
 
+def test_load_engine_loads_a_candidate_on_the_worker_and_keeps_the_engine_in_use(qtbot, controller):
+    class Loading(FakeEngine):
+        def load(self):
+            self.thread_ids.add(threading.get_ident())
+            if self.error is not None:
+                raise self.error
+            self.loaded = True
+
+    old, new = FakeEngine(), Loading()
+    c = controller(old)
+    loaded = []
+    c.engineLoaded.connect(lambda token, engine: loaded.append((token, engine)))
+    with qtbot.waitSignals([c.engineLoaded, c.predictionReady], timeout=5000):
+        token = c.load_engine(new)
+        assert c.loading and c.busy
+        c.submit(_strokes(1))  # a stroke drawn while the load runs: answered, and the load not cancelled
+    assert loaded == [(token, new)] and c.engine is old  # loaded, not switched to
+    assert len(old.calls) == 1 and new.calls == [] and getattr(new, "loaded", False)
+    assert threading.get_ident() not in new.thread_ids and not c.busy
+    broken = Loading()
+    broken.error = ModelError("generator.onnx: model role is 'predictor', expected 'generator' (files swapped?)")
+    with qtbot.waitSignal(c.engineLoadFailed, timeout=5000) as blocker:
+        token = c.load_engine(broken)
+    assert blocker.args == [token, str(broken.error)] and c.engine is old and not c.busy
+    loaded.clear()
+    first, second = Loading(), Loading()
+    with qtbot.waitSignal(c.engineLoaded, timeout=5000):
+        c.load_engine(first)
+        c.load_engine(second)
+    qtbot.wait(50)
+    assert [e for _, e in loaded] == [second] and getattr(first, "loaded", False) and not c.busy  # the older answer is dropped
+
+
 def test_composite_framing_and_thumbnails_happen_on_the_worker(qtbot, controller, tmp_path):
     models = write_fixture_models(tmp_path / "models")
     eng = SketchEngine(models, threads=1)

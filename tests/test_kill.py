@@ -10,7 +10,7 @@ appear, then sends SIGKILL.
   bit-identical (weights, BatchNorm statistics, Adam state) to a run that was never interrupted
   (mesh mode, for speed: tests/test_training_trainer.py shows resume is exact in joint mode too);
 * the app: killed while it autosaves the third stroke; the next start offers the two strokes of
-  the last complete autosave, exactly as drawn.
+  the last complete autosave, exactly as drawn, and deletes the half-written temporary file.
 """
 
 from __future__ import annotations
@@ -198,6 +198,9 @@ def test_sigkill_during_an_autosave_then_restart_offers_the_last_autosave(tmp_pa
             assert dialogs.kinds() == ["question"]
             restored = [[s.points.tolist(), s.width] for s in w.canvas.strokes()]
             assert restored == drawn  # ... with every stroke as drawn, none corrupted
+            qtbot.waitUntil(lambda: bool(w.autosaver.stale_removed), timeout=5000)  # ... and deletes the
+            assert w.autosaver.stale_removed == [half] and not half.exists()  # killed write's temporary file
+            assert not list(autosave_dir.glob(f".{AUTOSAVE_NAME}.*.tmp"))
         finally:
             w.force_close()
             w.deleteLater()
