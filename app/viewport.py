@@ -35,11 +35,13 @@ training field of view); ``front`` looks from +Z fitted to the mesh; ``side`` fr
 
 from __future__ import annotations
 
+import atexit
 import os
 import sys
 import time
 
 import numpy as np
+import shiboken6
 from PySide6.QtCore import QEventLoop, QMetaObject, QObject, QRectF, Qt, QThread, QTimer, Signal, Slot
 from PySide6.QtGui import QColor, QImage, QMouseEvent, QPainter, QPaintEvent, QResizeEvent, QShowEvent, QWheelEvent
 from PySide6.QtWidgets import QSizePolicy, QWidget
@@ -363,14 +365,33 @@ class _Scene(QObject):
         self.frameReady.emit(image, self._want, info)
 
 
+_RUNNING: dict[int, tuple[_Scene, QThread]] = {}
+"""Render threads started and not yet stopped, by id of their thread: stopped at interpreter
+exit (:func:`_stop_all_render_threads`) if their viewport was never closed, since Qt aborts
+the process when a running QThread is destroyed. Holding them here also keeps their Python
+wrappers (and so the C++ objects) alive until they are stopped."""
+
+
 def _stop_render_thread(scene: _Scene, thread: QThread) -> None:
-    """Finalize the scene on its thread and wait for that thread to end (idempotent)."""
+    """Finalize the scene on its thread and wait for that thread to end (idempotent; a thread or
+    scene whose C++ object is already gone, as at interpreter exit, is left alone)."""
+    _RUNNING.pop(id(thread), None)
+    if not (shiboken6.isValid(thread) and shiboken6.isValid(scene)):
+        return
     if thread.isFinished() or not thread.isRunning():
         return
     QMetaObject.invokeMethod(scene, "finalize", Qt.ConnectionType.QueuedConnection)
     if not thread.wait(SYNC_TIMEOUT_MS):
         thread.quit()
         thread.wait(SYNC_TIMEOUT_MS)
+
+
+@atexit.register
+def _stop_all_render_threads() -> None:
+    """Interpreter exit with a viewport still open (a script that never closed its window):
+    stop its render thread before Python tears the wrappers down in an arbitrary order."""
+    for scene, thread in list(_RUNNING.values()):
+        _stop_render_thread(scene, thread)
 
 
 class MeshViewport(QWidget):
@@ -438,8 +459,12 @@ class MeshViewport(QWidget):
         self._scene.frameReady.connect(self._on_frame, q)
         self._scene.failed.connect(self._on_failed, q)
         self._scene.readied.connect(self._on_readied, q)
+        self._on_destroyed = None
         if self._thread is not None:  # a viewport destroyed without close_plotter() still stops its thread
-            self.destroyed.connect(lambda *_a, scene=self._scene, thread=self._thread: _stop_render_thread(scene, thread))
+            _RUNNING[id(self._thread)] = (self._scene, self._thread)
+            self._on_destroyed = self.destroyed.connect(
+                lambda *_a, scene=self._scene, thread=self._thread: _stop_render_thread(scene, thread)
+            )
         w, h = self._device_size()
         self._setup_sig.emit(w, h)
 
@@ -663,5 +688,12 @@ class MeshViewport(QWidget):
             if not self._thread.wait(SYNC_TIMEOUT_MS):
                 self._thread.quit()
                 self._thread.wait(SYNC_TIMEOUT_MS)
+            if self._thread.isFinished():
+                # stopped: drop the destructor-time safety net, which would otherwise run at
+                # interpreter exit on a thread wrapper Python may already have deleted
+                _RUNNING.pop(id(self._thread), None)
+                if self._on_destroyed is not None:
+                    self.destroyed.disconnect(self._on_destroyed)
+                    self._on_destroyed = None
         else:
             self._scene.finalize()

@@ -24,14 +24,17 @@ thread: the UI's responsiveness while inference runs (a debug figure, and a test
 
 from __future__ import annotations
 
+import atexit
 import os
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import shiboken6
 from PySide6.QtCore import QElapsedTimer, QObject, Qt, QThread, QTimer, Signal, Slot
 from PySide6.QtGui import QImage
 
@@ -165,8 +168,22 @@ def load_engine_models(engine: object) -> str | None:
     return None
 
 
+_LIVE: weakref.WeakSet[InferenceController] = weakref.WeakSet()
+"""Controllers not shut down yet: shut down at interpreter exit (:func:`_shutdown_all`)."""
+
+
 def _release_orphan(thread: QThread) -> None:
     _ORPHANS[:] = [(t, w) for t, w in _ORPHANS if t is not thread]
+
+
+@atexit.register
+def _shutdown_all() -> None:
+    """Interpreter exit with a controller never shut down (a script that left its window
+    open): stop its thread first, since Qt aborts the process when a running QThread is
+    destroyed, and Python destroys the wrappers in no particular order."""
+    for controller in list(_LIVE):
+        if shiboken6.isValid(controller):  # a controller whose C++ side is gone has no thread to stop
+            controller.shutdown()
 
 
 class InferenceWorker(QObject):
@@ -323,6 +340,7 @@ class InferenceController(QObject):
         self._worker.engineFailed.connect(self._on_engine_failed, Qt.ConnectionType.QueuedConnection)
         self._thread.start()
         self._shut_down = False
+        _LIVE.add(self)
 
     # ---- configuration ----------------------------------------------------------------
     @property
@@ -510,6 +528,7 @@ class InferenceController(QObject):
         if self._shut_down:
             return True
         self._shut_down = True
+        _LIVE.discard(self)
         self._debounce.stop()
         self._provider = None
         self._worker.stop()

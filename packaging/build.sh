@@ -12,4 +12,5 @@ if [ -d "$out/_internal/torch" ] || [ -d "$out/_internal/training" ]; then
   echo "build.sh: torch or training leaked into the bundle" >&2; exit 1
 fi
 echo "built $out: $(du -sh "$out" | cut -f1) in $(find "$out" -type f | wc -l) files"
-echo "largest parts:"; du -sh "$out"/_internal/* 2>/dev/null | sort -rh | head -8
+# sed, not head: head exits early, sort dies of SIGPIPE and pipefail failed the build (rc 141)
+echo "largest parts:"; du -sh "$out"/_internal/* 2>/dev/null | sort -rh | sed -n 1,8p

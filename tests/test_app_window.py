@@ -430,6 +430,38 @@ def test_a_viewport_deleted_without_close_stops_its_render_thread(qtbot):
     qtbot.waitUntil(thread.isFinished, timeout=5000)
 
 
+_EXIT_SCRIPT = """
+import sys
+sys.path.insert(0, {tests!r})
+from gui_helpers import FakeEngine, fake_factory
+from PySide6.QtWidgets import QApplication
+from app.window import MainWindow
+app = QApplication([sys.argv[0]])
+w = MainWindow(engine_factory=fake_factory(FakeEngine()), autosave=False, persist_settings=False, debounce_ms=0)
+w.wait_until_ready()
+w.show()
+app.processEvents()
+if sys.argv[1] == "close":
+    w.close()  # closed, never deleted: Python tears the wrappers down at exit
+print("exiting", flush=True)
+"""
+
+
+@pytest.mark.parametrize("how", ["close", "leave_open"])
+def test_a_script_exiting_with_the_window_closed_or_open_exits_cleanly(tmp_path, how):
+    """Regression (issue 18): the viewport's destroyed-signal safety net ran at interpreter exit on
+    a QThread wrapper Python had already deleted (RuntimeError traceback), and a window left open
+    aborted the process (a running QThread destroyed)."""
+    script = tmp_path / "exit_script.py"
+    script.write_text(_EXIT_SCRIPT.format(tests=str(ROOT / "tests")))
+    env = dict(os.environ, XDG_CONFIG_HOME=str(tmp_path / "cfg"), XDG_DATA_HOME=str(tmp_path / "data"))
+    r = subprocess.run([sys.executable, str(script), how], capture_output=True, text=True, cwd=ROOT, env=env, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "exiting" in r.stdout
+    for bad in ("Traceback", "RuntimeError", "already deleted", "Destroyed while thread"):
+        assert bad not in r.stderr, r.stderr
+
+
 def test_wait_until_ready_loads_models_and_shaders_before_the_window_shows(qtbot, tmp_path):
     w = MainWindow(engine_factory=fake_factory(FakeEngine()), autosave=False, persist_settings=False)
     try:
