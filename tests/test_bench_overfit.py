@@ -69,6 +69,18 @@ def test_bench_overfit_cli_end_to_end(data, tmp_path, capsys):
     assert min(r["silhouette_iou"] for r in rec["fit"]) > 0.8
     assert abs(rec["gap"] - (np.mean([r["silhouette_iou"] for r in rec["fit"]])
                              - np.mean([r["silhouette_iou"] for r in rec["predictor"]]))) < 1e-9
+    # the sheet: per shape, the dataset's views (0 and 3 of 4) above the predicted mesh from the same views
+    from PIL import Image
+
+    sheet = np.asarray(Image.open(out / "overfit.png"))
+    assert sheet.shape == (2 * (2 * 64 + 2), 2 * 64, 3)
+    # a second call fits nothing again: the fit rows come from the dataset's cache, identical
+    out2 = tmp_path / "ov2"
+    assert main(["bench", "overfit", "--out", str(out2), "--data", str(data), "--shapes", "2", "--minutes", "0.01",
+                 "--batch", "2", "--fit-iters", "40", "--quiet", "--set", "extra_views=1", "--set", "predictor_hidden=64",
+                 "--set", "predictor_channels=8", "--set", "predictor_latent=32", "--set", "predictor_arch=compact"]) == 0
+    rec2 = json.loads((out2 / "overfit.json").read_text())
+    assert rec2["fit"] == rec["fit"] and rec2["config"]["predictor_arch"] == "compact"
 
 
 def test_bench_overfit_bad_input(tmp_path, capsys):

@@ -11,14 +11,18 @@ from engine.camera import Camera, frame_camera, look_at, relative_camera  # noqa
 from engine.icosphere import icosphere  # noqa: E402
 from training.loop.config import TrainConfig  # noqa: E402
 from training.model.networks import (  # noqa: E402
+    CompactMeshPredictor,
     MeshPredictor,
     NormalGenerator,
     PatchDiscriminator,
     adversarial_loss,
+    build_predictor,
     downsample_normals,
     global_l1_loss,
+    laplacian_basis,
     local_l1_loss,
     sample_edge_pixels,
+    smoothing_operator,
     sobel_magnitude,
     view_frame_cameras,
 )
@@ -318,3 +322,47 @@ def test_config_json_round_trip_and_validation():
         TrainConfig(lambda_s=float("nan"))
     with pytest.raises(ValueError, match="unknown"):
         TrainConfig.from_dict({"nope": 1})
+
+
+def test_laplacian_basis_full_is_the_large_steps_smoother_in_the_eigenbasis():
+    """With M = V the basis is (I + lam L)^-1 sqrt(V) Phi, Phi orthonormal: so B c for c = Phi^T u / sqrt(V)
+    gives back S u (the smoother of MeshPredictor); truncating keeps the smoothest columns."""
+    t = icosphere(2)
+    v = t.num_vertices
+    full = laplacian_basis(t.faces, v, v, 16.0)
+    raw = laplacian_basis(t.faces, v, v, 0.0) / np.sqrt(v)  # Phi
+    np.testing.assert_allclose(raw.T @ raw, np.eye(v), atol=1e-4)
+    u = np.random.default_rng(0).normal(size=(v, 3))
+    np.testing.assert_allclose(full @ (raw.T @ u) / np.sqrt(v), smoothing_operator(t.faces, v, 16.0) @ u, atol=1e-4)
+    # the first mode is the constant (a unit coefficient moves every vertex by 1); the next three are
+    # (to within the icosphere's irregularity) the coordinate functions x, y, z: > 99.9 % of each
+    # unit column lies in their span
+    np.testing.assert_allclose(full[:, 0], 1.0, atol=1e-5)
+    residual = np.linalg.lstsq(np.c_[t.vertices, np.ones(v)], raw[:, 1:4], rcond=None)[1]
+    assert residual.max() < 1e-3
+    np.testing.assert_array_equal(laplacian_basis(t.faces, v, 10, 16.0), full[:, :10])
+    for bad in (0, v + 1):
+        with pytest.raises(ValueError, match="modes"):
+            laplacian_basis(t.faces, v, bad, 16.0)
+
+
+def test_compact_predictor_offsets_are_the_basis_times_the_head_and_stay_bounded():
+    p = CompactMeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, modes=20)
+    p.eval()
+    x = torch.rand(2, 3, 64, 64)
+    with torch.no_grad():
+        coeff = p.local_head(p.decoder(p.encoder(x)) * p.head_gain).view(2, 20, 3)
+        local, glob = p(x)
+        torch.testing.assert_close(local, p.local_scale * p.basis @ coeff)
+        assert local.shape == (2, 162, 3) and glob.shape == (2, 3)
+        p.local_head.bias.fill_(1e6)
+        local, _ = p(x)
+    assert torch.isfinite(local).all() and local.abs().max() <= 2.0 * p.local_scale + 1e-6
+    assert n_params(CompactMeshPredictor()) < 0.15 * n_params(MeshPredictor())
+    with pytest.raises(ValueError, match="modes"):
+        CompactMeshPredictor(template_level=2, modes=163)
+    with pytest.raises(ValueError, match="arch"):
+        build_predictor("unet")
+    cfg_bad = dict(predictor_arch="big")
+    with pytest.raises(ValueError, match="predictor_arch"):
+        TrainConfig(**cfg_bad)

@@ -23,7 +23,7 @@ from training.loop.checkpoint import (  # noqa: E402
     save_checkpoint,
 )
 from training.loop.config import TrainConfig  # noqa: E402
-from training.loop.trainer import Trainer, _to_device  # noqa: E402
+from training.loop.trainer import Trainer, TrainingError, _to_device  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from synthetic_data import write_synthetic_dataset  # noqa: E402
@@ -360,3 +360,25 @@ def test_bad_input_gives_one_line_errors(data_dir, tmp_path, capsys):
               "--template-level", "3", "--quiet"])
     err = capsys.readouterr().err.strip()
     assert rc != 0 and "config changed" in err and "template_level" in err
+
+
+def test_lr_warmup_ramps_linearly_and_a_compact_run_resumes_bit_identically(data_dir, tmp_path):
+    """Warm-up: step it runs at min(1, (it + 1) / lr_warmup) of the base rate (hand-computed), the
+    rate the optimizer really used; the compact predictor resumes mid-warm-up exactly."""
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), iters=3, lr_warmup=4, lr_mesh=2e-3,
+                      **(TINY | {"predictor_arch": "compact", "predictor_modes": 20}))
+    straight = Trainer(cfg.replace(out_dir=str(tmp_path / "a")), progress=False)
+    seen = []
+    real_step = straight.optimizers["predictor"].step
+    straight.optimizers["predictor"].step = lambda *a, **k: (seen.append(
+        straight.optimizers["predictor"].param_groups[0]["lr"]), real_step(*a, **k))[1]
+    straight.run()
+    np.testing.assert_allclose(seen, [0.5e-3, 1.0e-3, 1.5e-3])
+    Trainer(cfg.replace(out_dir=str(tmp_path / "b"), iters=1), progress=False).run()
+    resumed = Trainer(cfg.replace(out_dir=str(tmp_path / "b")), progress=False)
+    resumed.run()
+    a, b = params(straight.models), params(resumed.models)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    # the architecture is part of what a checkpoint fixes: resuming as softras is refused
+    with pytest.raises(TrainingError, match="predictor_arch"):
+        Trainer(cfg.replace(out_dir=str(tmp_path / "b"), predictor_arch="softras", iters=5), progress=False)

@@ -16,7 +16,8 @@ Both are scored the same way, on the shapes' own dataset views (24 azimuths at 3
 
 Steps (each resumes): build ``OUT/data`` (``--shapes`` procedural train-split shapes, one per
 category in turn) unless ``--data`` names a dataset, train ``OUT/run`` for ``--minutes``, fit
-every shape directly, write ``OUT/overfit.json`` and print the table.
+every shape directly (cached per dataset), write ``OUT/overfit.json`` and ``OUT/overfit.png`` (each
+shape's dataset normal images above the predicted mesh from the same views) and print the table.
 """
 
 from __future__ import annotations
@@ -71,18 +72,27 @@ def silhouette_ious(world_vertices: np.ndarray, faces: np.ndarray, cameras: np.n
     return np.array([silhouette_iou(sil[k], targets[k] > 0.5) for k in range(n)])
 
 
-def score_predictor(run_dir: Path, dataset, input_views) -> list[dict]:
-    """Per shape: mean silhouette IoU over all views and voxel IoU, predicted from ``input_views``."""
+SHEET_VIEWS = (0, 3, 6, 9, 12, 18)
+"""Dataset views shown in ``overfit.png`` (the predictor's mesh is predicted from view 0)."""
+
+
+def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = None) -> list[dict]:
+    """Per shape: mean silhouette IoU over all views and voxel IoU, predicted from ``input_views``.
+
+    With ``sheet``, also writes a PNG: per shape, the dataset's normal images from
+    :data:`SHEET_VIEWS` above the mesh predicted from view 0 rendered from the same views.
+    """
     import torch
 
     from training.evaluation.evaluate import world_vertices
     from training.evaluation.metrics import voxel_iou
-    from training.loop.trainer import load_run
+    from training.loop.trainer import load_run, write_png
+    from training.render import rasterize
 
     cfg, models, state = load_run(run_dir)
     predictor = models["predictor"]
     faces = predictor.template_faces.numpy()
-    rows = []
+    rows, tiles = [], []
     for category, sid, _ in dataset.shapes():
         mesh = dataset.load_mesh(category, sid)
         cams, sils, n64 = (dataset.shape_array(category, sid, k) for k in ("cameras", "silhouette64", "normals64"))
@@ -98,14 +108,41 @@ def score_predictor(run_dir: Path, dataset, input_views) -> list[dict]:
             vox.append(voxel_iou(Mesh(world.astype(np.float32), faces), mesh))
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(ious)),
                      "voxel_iou": float(np.mean(vox))})
+        if sheet is not None and views and views[0] == 0:
+            shown = [v for v in SHEET_VIEWS if v < len(cams)]
+            world = torch.from_numpy(world_vertices(verts[0], cams[0]))[None].expand(len(shown), -1, -1)
+            with torch.no_grad():
+                rendered = rasterize(world, torch.from_numpy(np.array(faces, np.int64)),
+                                     torch.from_numpy(np.array(cams[shown], np.float64)), n64.shape[1])
+            pred = rendered.normals.numpy().transpose(0, 2, 3, 1)
+            tiles.append(np.concatenate([np.concatenate([n64[v] for v in shown], 1),
+                                         np.concatenate(list(pred), 1)], 0))
+    if sheet is not None and tiles:
+        width = max(t.shape[1] for t in tiles)
+        tiles = [np.pad(t, ((0, 2), (0, width - t.shape[1]), (0, 0)), constant_values=1.0) for t in tiles]
+        write_png(sheet, (np.clip(np.concatenate(tiles, 0), 0, 1) * 255).astype(np.uint8))
     return rows
 
 
 def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **fit_kwargs) -> list[dict]:
-    """Per shape: direct fit (:func:`training.bench.fit.fit_mesh`), scored on the dataset's views."""
+    """Per shape: direct fit (:func:`training.bench.fit.fit_mesh`), scored on the dataset's views.
+
+    The rows are cached in ``DATA/.cache/overfit_fit.json`` under a key of the shapes and every fit
+    setting (derived data, safe to delete), so comparing predictor variants on one dataset fits once.
+    """
     from training.bench.fit import fit_mesh
+    from training.data.mesh_cache import CACHE_DIR
     from training.evaluation.metrics import voxel_iou
 
+    shapes = [sid for _, sid, _ in dataset.shapes()]
+    key = json.dumps({"shapes": shapes, "iters": iters, "views": views, "seed": seed, **fit_kwargs}, sort_keys=True)
+    cache_path = Path(dataset.root) / CACHE_DIR / "overfit_fit.json"
+    try:
+        cached = json.loads(cache_path.read_text())
+    except (OSError, ValueError):
+        cached = {}
+    if isinstance(cached, dict) and key in cached:
+        return cached[key]
     rows = []
     for category, sid, _ in dataset.shapes():
         mesh = dataset.load_mesh(category, sid)
@@ -115,6 +152,11 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
         ious = silhouette_ious(fitted.vertices, fitted.faces, cams, sils)
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(ious.mean()),
                      "voxel_iou": voxel_iou(fitted, mesh), "seconds": res.seconds})
+    try:
+        cache_path.parent.mkdir(exist_ok=True)
+        atomic_write_text(cache_path, json.dumps({**(cached if isinstance(cached, dict) else {}), key: rows}) + "\n")
+    except OSError:
+        pass  # a read-only dataset: fit again next time
     return rows
 
 
@@ -175,7 +217,7 @@ def main_overfit(args) -> int:
     t0 = time.perf_counter()
     Trainer(cfg, progress=not args.quiet, train_set=train_set, val_set=None).run()
     train_s = time.perf_counter() - t0
-    pred_rows = score_predictor(out / "run", dataset, DEFAULT_INPUT_VIEWS)
+    pred_rows = score_predictor(out / "run", dataset, DEFAULT_INPUT_VIEWS, sheet=out / "overfit.png")
     fit_kwargs = {k: v for k, v in (("normal_region", args.fit_normal_region), ("smoothing", args.fit_smoothing),
                                     ("lr", args.fit_lr)) if v is not None}
     fit_rows = score_fit(dataset, iters=fit_iters, views=8, seed=args.seed, progress=not args.quiet, **fit_kwargs)
@@ -195,5 +237,5 @@ def main_overfit(args) -> int:
               "train_minutes": train_s / 60.0, "config": cfg.to_dict(), "fit": fit_rows, "predictor": pred_rows,
               "fit_iters": fit_iters, "gap": gap, "pass": passed}
     atomic_write_text(out / "overfit.json", json.dumps(record, indent=2) + "\n")
-    print(f"wrote {out / 'overfit.json'}")
+    print(f"wrote {out / 'overfit.json'} and {out / 'overfit.png'} (per shape: dataset views, then the predicted mesh)")
     return 0

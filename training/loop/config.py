@@ -32,6 +32,7 @@ class TrainConfig:
         batch: per-process batch size.
         lr_g, lr_d: RMSProp learning rates of the generator and the discriminator (paper: 5e-5).
         lr_mesh, betas: Adam settings of the mesh predictor (paper: 1e-4, (0.9, 0.999)).
+        lr_warmup: the learning rates rise linearly from 0 over this many first iterations (0: off).
         lambda_n, lambda_s, lambda_e, lambda_m: Eq. 6 weights (paper: 0.002, 0.9, 0.9, 0.01);
             ``lambda_n = 0`` trains the silhouette-only baseline.
         lambda_g, lambda_l: Eq. 10 weights of the global and local (Sobel-sampled) L1 terms.
@@ -40,7 +41,11 @@ class TrainConfig:
         sobel_samples: pixels sampled per image for Eq. 9.
         sobel_threshold: Sobel magnitude above which a ground-truth pixel is an edge (a unit step gives 4).
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
+        predictor_arch: "softras" (SoftRas's encoder-decoder, the paper's) or "compact" (a CPU-sized
+            encoder with its offsets in a smooth Laplacian basis; see
+            :class:`training.model.networks.CompactMeshPredictor`).
         predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512).
+        predictor_modes: size M of the compact predictor's offset basis (0: one mode per vertex).
         template_level: icosphere level (3 -> 642 vertices, the paper's).
         predictor_local_bound: "tanh" or "clamp" bound of the predictor's local offsets (see
             :class:`training.model.networks.MeshPredictor`).
@@ -75,6 +80,7 @@ class TrainConfig:
     lr_d: float = 5e-5
     lr_mesh: float = 1e-4
     betas: tuple[float, float] = (0.9, 0.999)
+    lr_warmup: int = 0
     lambda_n: float = 0.002
     lambda_s: float = 0.9
     lambda_e: float = 0.9
@@ -86,9 +92,11 @@ class TrainConfig:
     sobel_samples: int = 512
     sobel_threshold: float = 0.5
     base_channels: int = 64
+    predictor_arch: str = "softras"
     predictor_channels: int = 64
     predictor_hidden: int = 1024
     predictor_latent: int = 512
+    predictor_modes: int = 0
     template_level: int = 3
     predictor_smoothing: float = 16.0
     predictor_local_bound: str = "tanh"
@@ -122,6 +130,8 @@ class TrainConfig:
             problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
         if self.predictor_local_bound not in ("tanh", "clamp", "clamp-after"):
             problems.append(f"predictor_local_bound must be 'tanh', 'clamp' or 'clamp-after', got {self.predictor_local_bound!r}")
+        if self.predictor_arch not in ("softras", "compact"):
+            problems.append(f"predictor_arch must be 'softras' or 'compact', got {self.predictor_arch!r}")
         if self.normal_region not in ("image", "target"):
             problems.append(f"normal_region must be 'image' or 'target', got {self.normal_region!r}")
         if self.shading not in ("flat", "smooth"):
@@ -131,7 +141,8 @@ class TrainConfig:
             if int(getattr(self, name)) < 1:
                 problems.append(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("extra_views", "log_every", "val_every", "ckpt_every", "plot_every", "num_workers",
-                     "template_level", "seed"):
+                     "template_level", "seed",
+                     "predictor_modes", "lr_warmup"):
             if int(getattr(self, name)) < 0:
                 problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.template_level <= 5:

@@ -61,10 +61,10 @@ from engine.icosphere import TEMPLATE_RADIUS, icosphere
 from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
 from training.loop.config import TrainConfig, code_version
 from training.model.networks import (
-    MeshPredictor,
     NormalGenerator,
     PatchDiscriminator,
     adversarial_loss,
+    build_predictor,
     downsample_normals,
     global_l1_loss,
     local_l1_loss,
@@ -72,8 +72,9 @@ from training.model.networks import (
     view_frame_cameras,
 )
 
-MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_channels", "predictor_hidden", "predictor_latent",
-                      "template_level", "predictor_smoothing", "predictor_local_bound", "sketch_size")
+MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_arch", "predictor_channels", "predictor_hidden",
+                      "predictor_latent", "predictor_modes", "template_level", "predictor_smoothing",
+                      "predictor_local_bound", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes or
 the function the parameters were trained in)."""
 
@@ -148,9 +149,10 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
         models["generator"] = NormalGenerator(cfg.base_channels)
         models["discriminator"] = PatchDiscriminator(cfg.base_channels)
     if cfg.uses_predictor:
-        models["predictor"] = MeshPredictor(
-            cfg.template_level, cfg.predictor_channels, cfg.predictor_hidden, cfg.predictor_latent, cfg.render_size,
-            smoothing=cfg.predictor_smoothing, local_bound=cfg.predictor_local_bound,
+        models["predictor"] = build_predictor(
+            cfg.predictor_arch, template_level=cfg.template_level, channels=cfg.predictor_channels,
+            hidden=cfg.predictor_hidden, latent=cfg.predictor_latent, input_size=cfg.render_size,
+            smoothing=cfg.predictor_smoothing, local_bound=cfg.predictor_local_bound, modes=cfg.predictor_modes,
         )
     return models
 
@@ -415,6 +417,14 @@ class Trainer:
                 if "betas" in group:
                     group["betas"] = self.cfg.betas
 
+    def _set_learning_rates(self, it: int) -> None:
+        """Linear warm-up: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)`` of each base rate."""
+        scale = min(1.0, (it + 1) / self.cfg.lr_warmup) if self.cfg.lr_warmup else 1.0
+        lrs = {"generator": self.cfg.lr_g, "discriminator": self.cfg.lr_d, "predictor": self.cfg.lr_mesh}
+        for name, opt in self.optimizers.items():
+            for group in opt.param_groups:
+                group["lr"] = lrs[name] * scale
+
     def _init_from_runs(self) -> None:
         """Initialise G (and D) from ``init_normals`` and the predictor from ``init_mesh``."""
         for run, names in ((self.cfg.init_normals, ("generator", "discriminator")), (self.cfg.init_mesh, ("predictor",))):
@@ -613,6 +623,7 @@ class Trainer:
                     torch.nn.utils.clip_grads_with_norm_(
                         [p for p in model.parameters() if p.grad is not None], self.cfg.grad_clip, norms[name]
                     )
+        self._set_learning_rates(it)
         for o in self.optimizers.values():
             o.step()
         self.bad_streak = 0

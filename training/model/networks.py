@@ -308,6 +308,141 @@ class MeshPredictor(nn.Module):
         return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
 
 
+PREDICTOR_ARCHS = ("softras", "compact")
+"""``softras``: SoftRas's encoder-decoder (26 M parameters at its widths, a V x 3 output head);
+``compact``: :class:`CompactMeshPredictor`, sized for a CPU (about 2 M parameters)."""
+
+
+def laplacian_basis(faces: np.ndarray, num_vertices: int, modes: int, lam: float) -> np.ndarray:
+    """(V, M) float32: the ``M`` smoothest eigenvectors of the template's combinatorial Laplacian.
+
+    Column ``k`` is the unit eigenvector ``phi_k`` of ``L = D - A`` (eigenvalue ``mu_k``, ascending)
+    times ``sqrt(V) / (1 + lam * mu_k)``. So offsets ``B c`` with ``M = V`` are exactly
+    ``(I + lam L)^-1 (sqrt(V) Phi c)``, the large-steps parametrisation of :func:`smoothing_operator`
+    in the eigenbasis; ``M < V`` keeps only its smoothest modes. The ``sqrt(V)`` makes a unit
+    coefficient of the constant mode a unit offset of every vertex. Signs are fixed so that each
+    column's largest-magnitude entry is positive (the eigensolver's sign is arbitrary).
+    """
+    if not 1 <= modes <= num_vertices:
+        raise ValueError(f"modes must be in [1, {num_vertices}], got {modes}")
+    if not (math.isfinite(lam) and lam >= 0):
+        raise ValueError(f"lam must be finite and >= 0, got {lam}")
+    edges = unique_edges(np.asarray(faces))
+    adj = np.zeros((num_vertices, num_vertices), dtype=np.float64)
+    adj[edges[:, 0], edges[:, 1]] = 1.0
+    adj[edges[:, 1], edges[:, 0]] = 1.0
+    lap = np.diag(adj.sum(axis=1)) - adj
+    mu, phi = np.linalg.eigh(lap)
+    mu, phi = np.clip(mu[:modes], 0.0, None), phi[:, :modes]
+    idx = np.abs(phi).argmax(axis=0)
+    phi = phi * np.sign(phi[idx, np.arange(modes)])[None, :]
+    return (phi * (math.sqrt(num_vertices) / (1.0 + lam * mu))[None, :]).astype(np.float32)
+
+
+class CompactMeshPredictor(nn.Module):
+    """Normal image (N, 3, 64, 64) -> icosphere offsets, sized for a laptop CPU (``arch="compact"``).
+
+    Same inputs, outputs and ONNX contract as :class:`MeshPredictor`; about 2 M parameters instead
+    of 26 M, so a training step costs little beside the rasterizer.
+
+    Encoder: four Conv 4x4 stride 2 (c, 2c, 4c, 8c; BatchNorm, ReLU) take 64x64 to 4x4, then one FC
+    to ``latent`` (8c * 16 inputs: 4,096 at c = 32 against SoftRas's 16,384). Decoder: FC ``hidden``,
+    then two heads: ``M`` x 3 coefficients of the smooth basis :func:`laplacian_basis` and the
+    global offset ``global_scale * tanh(.)`` (3).
+
+    Local offsets are ``local_scale * B c``: a linear head (nothing saturates) in a basis whose
+    smooth modes take the largest steps (Nicolet et al.'s large steps, in closed form), so the
+    output cannot crumple however Adam moves the head's weights; ``M`` below V drops the roughest
+    modes and shrinks the head. The offsets are then clamped to ``+-LOCAL_CLAMP * local_scale``
+    per coordinate (as ``local_bound="clamp-after"``), so any output stays finite and in the cube.
+
+    Head gain: the heads' input is multiplied by ``1 / sqrt(hidden)`` (see :class:`MeshPredictor`).
+
+    Args:
+        template_level: icosphere level (3 -> 642 vertices).
+        base_channels: c.
+        hidden: decoder FC width.
+        latent: code width.
+        modes: M, basis size (0 = every vertex, V).
+        smoothing: lambda of the basis's spectral damping ``1 / (1 + lambda mu)``.
+        input_size: side of the input image (64; must be a multiple of 16).
+    """
+
+    def __init__(
+        self,
+        template_level: int = 3,
+        base_channels: int = 32,
+        hidden: int = 512,
+        latent: int = 256,
+        modes: int = 0,
+        smoothing: float = PREDICTOR_SMOOTHING,
+        input_size: int = PREDICTOR_INPUT_SIZE,
+        local_scale: float = LOCAL_OFFSET_SCALE,
+        global_scale: float = GLOBAL_OFFSET_SCALE,
+    ) -> None:
+        super().__init__()
+        if input_size % 16:
+            raise ValueError(f"input_size must be a multiple of 16, got {input_size}")
+        template = icosphere(template_level, TEMPLATE_RADIUS)
+        self.template_level = int(template_level)
+        self.num_vertices = template.num_vertices
+        self.modes = int(modes) if modes else self.num_vertices
+        if not 1 <= self.modes <= self.num_vertices:
+            raise ValueError(f"modes must be in [0, {self.num_vertices}] (0 = all), got {modes}")
+        if not (math.isfinite(smoothing) and smoothing >= 0):
+            raise ValueError(f"smoothing must be finite and >= 0, got {smoothing}")
+        self.smoothing = float(smoothing)
+        self.input_size = int(input_size)
+        self.local_scale = float(local_scale)
+        self.global_scale = float(global_scale)
+        self.local_bound = "clamp-after"
+        self.register_buffer("basis", torch.from_numpy(
+            laplacian_basis(np.asarray(template.faces), self.num_vertices, self.modes, self.smoothing)), persistent=False)
+        self.register_buffer("template_vertices", torch.from_numpy(np.array(template.vertices)), persistent=False)
+        self.register_buffer("template_faces", torch.from_numpy(np.array(template.faces)), persistent=False)
+        c = int(base_channels)
+        layers: list[nn.Module] = []
+        for cin, cout in ((3, c), (c, 2 * c), (2 * c, 4 * c), (4 * c, 8 * c)):
+            layers += [nn.Conv2d(cin, cout, 4, 2, 1, bias=False), nn.BatchNorm2d(cout), nn.ReLU()]
+        side = input_size // 16
+        self.encoder = nn.Sequential(*layers, nn.Flatten(), nn.Linear(8 * c * side * side, latent), nn.ReLU())
+        self.decoder = nn.Sequential(nn.Linear(latent, hidden), nn.ReLU())
+        self.head_gain = 1.0 / math.sqrt(hidden)
+        self.local_head = nn.Linear(hidden, self.modes * 3)
+        self.global_head = nn.Linear(hidden, 3)
+        for head in (self.local_head, self.global_head):
+            nn.init.normal_(head.weight, std=OUTPUT_INIT_STD)
+            nn.init.zeros_(head.bias)
+
+    def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
+        _check_image(normals, 3, self.input_size, "normals")
+        h = self.decoder(self.encoder(normals)) * self.head_gain
+        coeff = self.local_head(h).view(-1, self.modes, 3)
+        local = self.local_scale * torch.matmul(self.basis.to(coeff.dtype), coeff)
+        bound = LOCAL_CLAMP * self.local_scale
+        local = local.clamp(-bound, bound)
+        glob = self.global_scale * torch.tanh(self.global_head(h))
+        return local, glob
+
+    def vertices(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
+        """(N, V, 3) view-frame vertices ``template + local + global``."""
+        return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
+
+
+def build_predictor(arch: str = "softras", *, template_level: int = 3, channels: int = 64, hidden: int = 1024,
+                    latent: int = 512, input_size: int = PREDICTOR_INPUT_SIZE, smoothing: float = PREDICTOR_SMOOTHING,
+                    local_bound: str = "tanh", modes: int = 0) -> nn.Module:
+    """The mesh predictor of architecture ``arch`` (:data:`PREDICTOR_ARCHS`)."""
+    if arch == "softras":
+        return MeshPredictor(template_level, channels, hidden, latent, input_size, smoothing=smoothing,
+                             local_bound=local_bound)
+    if arch == "compact":
+        return CompactMeshPredictor(template_level, channels, hidden, latent, modes=modes, smoothing=smoothing,
+                                    input_size=input_size)
+    raise ValueError(f"predictor arch must be one of {PREDICTOR_ARCHS}, got {arch!r}")
+
+
 # ----------------------------------------------------------------------------------------------
 # Generator losses (Eq. 7-10)
 # ----------------------------------------------------------------------------------------------
@@ -434,15 +569,19 @@ def view_frame_cameras(input_cameras: torch.Tensor, other_cameras: torch.Tensor 
 
 
 __all__ = [
+    "CompactMeshPredictor",
     "GENERATOR_LEVELS",
     "MeshPredictor",
+    "PREDICTOR_ARCHS",
     "NormalGenerator",
     "PatchDiscriminator",
     "SKETCH_SIZE",
     "adversarial_loss",
+    "build_predictor",
     "downsample_normals",
     "generator_channels",
     "global_l1_loss",
+    "laplacian_basis",
     "local_l1_loss",
     "sample_edge_pixels",
     "sobel_magnitude",
