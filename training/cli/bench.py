@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench variants``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -35,6 +35,7 @@ _cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
 _cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
 _cmd_bench_overfit = _lazy("training.bench.overfit", "main_overfit")
 _cmd_bench_train = _lazy("training.bench.train", "main_bench_train")
+_cmd_bench_variants = _lazy("training.bench.variants", "main_variants")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_bench_refine = _lazy("training.evaluation.refine_bench", "main_refine_bench")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
@@ -145,6 +146,27 @@ def register(commands, bench) -> None:
     tr.add_argument("--json", metavar="PATH", help="write the record as one JSON object")
     tr.add_argument("--quiet", action="store_true")
     tr.set_defaults(func=_cmd_bench_train)
+
+    v = one_line_errors(bench.add_parser(
+        "variants",
+        help="mesh-predictor configurations at equal wall-clock time: test voxel IoU against training minutes",
+        description="Trains each --variant (TrainConfig overrides on a shared mesh-mode base) for --minutes in "
+        "--points chunks, scores the test split on ground-truth normal images after each chunk, and writes "
+        "variants.json, variants.md and variants.png to --out. Resumes: finished chunks are kept.",
+    ))
+    v.add_argument("--data", required=True, metavar="DIR", help="dataset folder (train split to train, test split to score)")
+    v.add_argument("--out", required=True, metavar="DIR", help="folder for runs/, variants.json/.md/.png; resumes")
+    v.add_argument("--variant", action="append", required=True, metavar="NAME[:FIELD=VALUE,...]",
+                   help="a variant: a name and its config overrides (repeat), e.g. k3:extra_views=3")
+    v.add_argument("--set", type=_key_value, action="append", metavar="FIELD=VALUE",
+                   help="override a config field for every variant (repeat)")
+    v.add_argument("--minutes", type=float_in(0.01, 10_000.0), default=20.0, help="training wall time per variant")
+    v.add_argument("--points", type=int_in(1, 100), default=4, help="scored points per variant (equal chunks)")
+    v.add_argument("--max-samples", type=int_in(0, 10**9), default=156, help="test samples scored (0: all)")
+    v.add_argument("--threads", type=positive_int, default=2, help="torch intra-op threads (default 2)")
+    v.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
+    v.add_argument("--quiet", action="store_true")
+    v.set_defaults(func=_cmd_bench_variants)
 
     p = one_line_errors(bench.add_parser(
         "refine", help="refinement to the sketch's outline: silhouette IoU, voxel IoU and latency for N steps",
