@@ -124,7 +124,7 @@ def _ddp_main(data_dir: str, out_dir: str) -> None:
     cfg = TrainConfig(mode="joint", data_dir=data_dir, out_dir=str(Path(out_dir) / "run"), iters=3, batch=2,
                       base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
                       template_level=2, sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0,
-                      ckpt_every=0, plot_every=0, device="cpu")
+                      ckpt_every=0, plot_every=0, device="cpu", extra_views=1)
     import training.loop.trainer as tr
 
     captured = {}

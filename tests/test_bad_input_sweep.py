@@ -184,7 +184,7 @@ TINY_CONFIG = dict(batch=2, base_channels=8, predictor_channels=8, predictor_hid
                    template_level=2, sobel_samples=64, augment_strength=0.0, device="cpu")
 TINY_FLAGS = ["--batch", "2", "--base-channels", "8", "--predictor-channels", "8", "--predictor-hidden", "32",
               "--predictor-latent", "16", "--template-level", "2", "--sobel-samples", "64", "--augment-strength", "0",
-              "--quiet", "--threads", "2", "--val-every", "0", "--plot-every", "0", "--device", "cpu"]
+              "--quiet", "--threads", "2", "--val-every", "0", "--plot-every", "0", "--device", "cpu", "--extra-views", "1"]
 
 
 def _write_run(run: Path, data: Path, mode: str = "joint", **changes) -> Path:

@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 TESTS = Path(__file__).resolve().parent
 TINY_FLAGS = ["--batch", "2", "--base-channels", "8", "--predictor-channels", "8", "--predictor-hidden", "32",
               "--predictor-latent", "16", "--template-level", "2", "--sobel-samples", "64", "--augment-strength", "0",
-              "--quiet", "--threads", "2", "--val-every", "0", "--plot-every", "0", "--device", "cpu"]
+              "--quiet", "--threads", "2", "--val-every", "0", "--plot-every", "0", "--device", "cpu", "--extra-views", "1"]
 KILL_WAIT_S = 120.0
 """Longest wait for the stalled write to start (torch or Qt imports included) before the test fails."""
 

@@ -24,7 +24,7 @@ from synthetic_data import write_synthetic_dataset  # noqa: E402
 
 MESH_KEYS = ("normals64", "silhouette64", "camera", "other_normals64", "other_silhouette64", "other_cameras",
              "category", "shape_id", "view")
-TINY = dict(batch=3, predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
+TINY = dict(batch=3, predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2, extra_views=1,
             log_every=1, val_every=0, ckpt_every=0, plot_every=0, device="cpu")
 torch.set_num_threads(2)
 

@@ -33,7 +33,7 @@ def run_dir(tmp_path_factory) -> Path:
     cfg = TrainConfig(mode="joint", data_dir=str(data), out_dir=str(root / "run"), iters=1, batch=2, base_channels=8,
                       predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
                       sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
-                      device="cpu")
+                      device="cpu", extra_views=1)
     Trainer(cfg, progress=False).run()
     return root / "run"
 

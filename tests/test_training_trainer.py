@@ -33,10 +33,10 @@ torch.set_num_threads(2)
 
 TINY = dict(batch=2, base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
             template_level=2, sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0,
-            plot_every=0, device="cpu")
+            plot_every=0, device="cpu", extra_views=1)
 TINY_FLAGS = ["--batch", "2", "--base-channels", "8", "--predictor-channels", "8", "--predictor-hidden", "32",
               "--predictor-latent", "16", "--template-level", "2", "--sobel-samples", "64", "--augment-strength", "0",
-              "--quiet", "--threads", "2"]
+              "--quiet", "--threads", "2", "--extra-views", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -339,12 +339,13 @@ def test_max_minutes_stops_the_run_with_a_checkpoint_and_resume_continues(data_d
 def test_bad_input_gives_one_line_errors(data_dir, tmp_path, capsys):
     cases = [
         (["train", "mesh", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")], "does not exist"),
-        (["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--batch", "0"], "batch"),
+        (["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--batch", "-1"], "batch"),
         (["eval", str(tmp_path / "missing_run"), "--data", str(data_dir)], "does not exist"),
         (["export", str(tmp_path), "-o", str(tmp_path / "x")], "no checkpoint"),
     ]
     if not torch.cuda.is_available():
-        cases.append((["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--device", "cuda"],
+        cases.append((["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "r"), "--device", "cuda",
+                       "--extra-views", "1"],
                       "no CUDA device"))
     for argv, needle in cases:
         rc = cli(argv)
@@ -356,7 +357,7 @@ def test_bad_input_gives_one_line_errors(data_dir, tmp_path, capsys):
     rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "2", "--no-resume", *TINY_FLAGS])
     err = capsys.readouterr().err.strip()
     assert rc != 0 and "already has checkpoints" in err
-    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "2", "--base-channels", "8",
+    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(run), "--iters", "2", "--base-channels", "8", "--extra-views", "1",
               "--template-level", "3", "--quiet"])
     err = capsys.readouterr().err.strip()
     assert rc != 0 and "config changed" in err and "template_level" in err

@@ -77,7 +77,8 @@ def _is_main_rank() -> bool:
 
 INIT_FIELDS = {
     "generator": ("base_channels",),
-    "predictor": ("template_level", "predictor_channels", "predictor_hidden", "predictor_latent"),
+    "predictor": ("predictor_arch", "template_level", "predictor_channels", "predictor_hidden", "predictor_latent",
+                  "predictor_modes"),
 }
 """Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
 

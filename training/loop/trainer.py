@@ -46,6 +46,7 @@ import csv
 import io
 import os
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,6 +61,7 @@ from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
 from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
 from training.loop.config import TrainConfig, code_version
+from training.model.losses import chamfer_loss, sample_mesh_points
 from training.model.networks import (
     NormalGenerator,
     PatchDiscriminator,
@@ -71,6 +73,9 @@ from training.model.networks import (
     sample_edge_pixels,
     view_frame_cameras,
 )
+
+SURFACE_POINTS = 1024
+"""Points per mesh in the Chamfer term of ``supervision="3d"`` (the diagnostic ceiling)."""
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_arch", "predictor_channels", "predictor_hidden",
                       "predictor_latent", "predictor_modes", "template_level", "predictor_smoothing",
@@ -418,12 +423,13 @@ class Trainer:
                     group["betas"] = self.cfg.betas
 
     def _set_learning_rates(self, it: int) -> None:
-        """Linear warm-up: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)`` of each base rate."""
+        """The predictor's linear warm-up: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)``
+        of ``lr_mesh``. The generator and discriminator keep the paper's constant RMSProp rates."""
         scale = min(1.0, (it + 1) / self.cfg.lr_warmup) if self.cfg.lr_warmup else 1.0
-        lrs = {"generator": self.cfg.lr_g, "discriminator": self.cfg.lr_d, "predictor": self.cfg.lr_mesh}
+        lrs = {"generator": self.cfg.lr_g, "discriminator": self.cfg.lr_d, "predictor": self.cfg.lr_mesh * scale}
         for name, opt in self.optimizers.items():
             for group in opt.param_groups:
-                group["lr"] = lrs[name] * scale
+                group["lr"] = lrs[name]
 
     def _init_from_runs(self) -> None:
         """Initialise G (and D) from ``init_normals`` and the predictor from ``init_mesh``."""
@@ -469,6 +475,8 @@ class Trainer:
             cols += ["d_loss", "g_adv", "g_global", "g_local", "g_total"]
         if self.cfg.uses_predictor:
             cols += ["mesh_normal", "mesh_silhouette", "mesh_edge", "mesh_smoothness", "mesh_total"]
+            if self.cfg.supervision == "3d":
+                cols.insert(-1, "mesh_chamfer")
         return cols
 
     def _prepare_log(self) -> None:
@@ -520,6 +528,23 @@ class Trainer:
             return {}
         return {c: float(v) / count for c, v in zip(cols, vals[:-1].tolist())}
 
+    def _true_surface_points(self, batch: dict) -> torch.Tensor:
+        """(B, SURFACE_POINTS, 3) points on each sample's true surface in its input view's frame
+        (``supervision="3d"`` only); sampled once per shape (seeded by its id) and kept."""
+        if not hasattr(self, "_surface_cache"):
+            self._surface_cache = {}
+        pts = []
+        for cat, sid in zip(batch["category"], batch["shape_id"]):
+            if (cat, sid) not in self._surface_cache:
+                mesh = self.train_set.load_mesh(cat, sid)
+                gen = torch.Generator().manual_seed(zlib.crc32(f"{cat}/{sid}".encode()))
+                world = sample_mesh_points(torch.from_numpy(np.array(mesh.vertices, np.float32))[None],
+                                           torch.from_numpy(np.array(mesh.faces, np.int64)), SURFACE_POINTS, gen)
+                self._surface_cache[(cat, sid)] = world[0]
+            pts.append(self._surface_cache[(cat, sid)])
+        rot = batch["camera"][:, :9].reshape(-1, 3, 3).float().cpu()  # p_view = R p_world
+        return (torch.stack(pts) @ rot.transpose(1, 2)).to(self.device)
+
     # ---- one step ----
     def _compute(self, batch: dict, it: int) -> tuple[list[torch.Tensor], dict[str, torch.Tensor], dict]:
         """Forward pass of a step: (losses to back-propagate, named detached terms, outputs)."""
@@ -555,7 +580,15 @@ class Trainer:
             inp = downsample_normals(fake, cfg.render_size) if cfg.mode == "joint" else batch["normals64"]
             local, glob = P(inp)
             verts = _unwrap(P).vertices(local, glob)
-            if bool(torch.isfinite(verts.detach()).all()):
+            if cfg.supervision == "3d" and bool(torch.isfinite(verts.detach()).all()):
+                gen = torch.Generator().manual_seed(_step_seed(cfg.seed, self.info.rank, it) + 2)
+                chamfer = chamfer_loss(sample_mesh_points(verts, self.faces, SURFACE_POINTS, gen),
+                                       self._true_surface_points(batch).to(verts.dtype))
+                reg_total, log = self.mesh_loss(verts)
+                mesh_total = cfg.lambda_chamfer * chamfer + reg_total
+                terms["mesh_chamfer"] = chamfer.detach()
+                out.update(vertices=verts)
+            elif bool(torch.isfinite(verts.detach()).all()):
                 cams = view_frame_cameras(batch["camera"], batch["other_cameras"])
                 rendered = render_views(verts, self.faces, cams.to(verts.dtype), cfg)
                 tn, ts = mesh_targets(batch)
