@@ -4,7 +4,7 @@
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
 # Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
-#   eval-gt tradeoff gallery docs clamp-trial
+#   eval-gt tradeoff gallery docs clamp-trial overfit variants
 #   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -29,7 +29,10 @@ JOINT_ITERS=${JOINT_ITERS:-500}
 SAMPLES=${SAMPLES:-312}
 TRADEOFF_SAMPLES=${TRADEOFF_SAMPLES:-156}
 LOCAL_BOUND=${LOCAL_BOUND:-tanh}
-PREDICTOR=(--predictor-channels 32 --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound "$LOCAL_BOUND")
+# The bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
+# lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
+PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
+           --predictor-local-bound "$LOCAL_BOUND" --lr-mesh 1e-4 --lr-warmup 0 --extra-views 1)
 
 step() {
   case "$1" in
@@ -51,8 +54,9 @@ step() {
       sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
         --normal-region image --iters 250 --threads "$THREADS" --log-every 50 --ckpt-every 250 --val-every 250 ;;
     clamp-trial)  # the next change to try: linear (clamped) local offsets instead of tanh (short run)
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 --predictor-channels 32 \
-        --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound clamp --normal-region target --iters 1000 --threads 2 --log-every 50 \
+      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 --predictor-arch softras --predictor-channels 32 \
+        --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound clamp --lr-mesh 1e-4 --lr-warmup 0 \
+        --extra-views 1 --normal-region target --iters 1000 --threads 2 --log-every 50 \
         --ckpt-every 250 --val-every 500 ;;
     joint)
       sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${PREDICTOR[@]}" \
@@ -89,12 +93,23 @@ step() {
       cp "$OUT/gallery.png" docs/gallery.png
       cp "$OUT/tradeoff/tradeoff.png" docs/tradeoff.png
       cp "$OUT/eval_clean/eval_test.png" docs/eval_test.png
+      [ -f "$OUT/variants/variants.png" ] && cp "$OUT/variants/variants.png" docs/variants.png
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
+    overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
+      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 ;;
+    variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
+      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+        --variant default --variant k1:extra_views=1 --variant k7:extra_views=7 \
+        --variant "softras-paper:predictor_arch=softras,lr_mesh=1e-4,lr_warmup=0,extra_views=1,predictor_local_bound=tanh" \
+        --variant 3d-diagnostic:supervision=3d
+      # the default alone, continued to 20 minutes (same 2-minute chunks)
+      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
+        --variant default ;;
     all)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants all)" >&2
       exit 2 ;;
   esac
 }

@@ -73,10 +73,11 @@ def _load(out: Path) -> dict:
 
 
 def markdown_table(record: dict) -> str:
-    """One row per scored point: variant, training minutes, iterations, test metrics."""
+    """One row per scored point, grouped by variant: training minutes, iterations, test metrics."""
     lines = ["| variant | train min | iterations | voxel IoU | silhouette IoU | Chamfer-L1 |",
              "|---|---:|---:|---:|---:|---:|"]
-    for p in record["points"]:
+    order = list(dict.fromkeys(p["variant"] for p in record["points"]))
+    for p in sorted(record["points"], key=lambda p: (order.index(p["variant"]), p["chunk"])):
         lines.append(f"| {label(p['variant'], p['config'])} | {p['train_minutes']:.1f} | {p['iteration']} | "
                      f"{p['voxel_iou']:.4f} | {p['silhouette_iou']:.4f} | {p['chamfer_l1']:.4f} |")
     return "\n".join(lines) + "\n"
@@ -119,14 +120,14 @@ def _write(out: Path, record: dict) -> None:
         atomic_write_bytes(out / "variants.png", plot_png(record))
 
 
-def _template_scores(base, test_set, max_samples: int) -> dict:
-    """Test metrics of the bare template sphere (the curves' starting point)."""
+def _template_scores(base, run: Path, test_set, max_samples: int) -> dict:
+    """Test metrics of the untrained predictor, whose offsets are ~0: the template sphere, where
+    every curve starts. ``run`` receives its checkpoint."""
     import torch
 
     from training.evaluation.evaluate import evaluate
     from training.loop.trainer import Trainer
 
-    run = Path(base.out_dir).parent / "_template"
     run.mkdir(parents=True, exist_ok=True)
     Trainer(base.replace(out_dir=str(run)), progress=False).save()  # the untrained predictor: offsets ~ 0
     with torch.no_grad():
@@ -172,11 +173,9 @@ def main_variants(args) -> int:
     if len(test_set) == 0:
         raise SketchmeshError(f"the test split of {data} is empty")
     if "template" not in record:
-        record["template"] = _template_scores(base.replace(out_dir=str(out / "runs" / "_base")), test_set,
-                                              args.max_samples)
-        record["settings"] = {"data": str(data), "minutes": args.minutes, "points": args.points,
-                              "max_samples": args.max_samples, "threads": args.threads}
-        _write(out, record)
+        record["template"] = _template_scores(base, out / "runs" / "_template", test_set, args.max_samples)
+    record["settings"] = {"data": str(data), "minutes": args.minutes, "points": args.points,
+                          "max_samples": args.max_samples, "threads": args.threads}  # the latest call's
     for name, cfg in configs.items():
         done = [p for p in record["points"] if p["variant"] == name]
         if done and done[0]["config"] != cfg.to_dict():

@@ -255,9 +255,16 @@ def chamfer_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     if pred.ndim != 3 or target.ndim != 3 or pred.shape[0] != target.shape[0] or pred.shape[2] != 3 \
             or target.shape[2] != 3:
         raise ValueError(f"chamfer_loss expects (B, N, 3) and (B, M, 3), got {tuple(pred.shape)} and {tuple(target.shape)}")
-    d2 = (pred[:, :, None, :] - target[:, None, :, :]).pow(2).sum(-1)  # (B, N, M)
-    to_target = torch.sqrt(d2.min(2).values.clamp_min(NORM_MIN_SQ)).mean(1)
-    to_pred = torch.sqrt(d2.min(1).values.clamp_min(NORM_MIN_SQ)).mean(1)
+    # Nearest neighbours without autograd (the gradient of a min reaches only its argmin), by
+    # |p|^2 + |t|^2 - 2 p.t in one batched matmul: no (B, N, M, 3) difference tensor (400 MB a step
+    # at 32 x 1024 x 1024) and no backward through the (B, N, M) matrix. Then exact distances of
+    # the nearest pairs only, with autograd.
+    with torch.no_grad():
+        d2 = (pred.pow(2).sum(-1)[:, :, None] + target.pow(2).sum(-1)[:, None, :]
+              - 2.0 * torch.bmm(pred, target.transpose(1, 2)))  # (B, N, M)
+        near_t, near_p = d2.argmin(2), d2.argmin(1)  # (B, N) into target, (B, M) into pred
+    to_target = safe_norm(pred - torch.gather(target, 1, near_t[..., None].expand(-1, -1, 3))).mean(1)
+    to_pred = safe_norm(target - torch.gather(pred, 1, near_p[..., None].expand(-1, -1, 3))).mean(1)
     return (0.5 * (to_target + to_pred)).mean()
 
 
