@@ -190,15 +190,43 @@ def smoothing_operator(faces: np.ndarray, num_vertices: int, lam: float) -> np.n
     """
     if lam == 0:
         return np.eye(num_vertices, dtype=np.float32)
+    return np.linalg.inv(np.eye(num_vertices) + lam * combinatorial_laplacian(faces, num_vertices)).astype(np.float32)
+
+
+def combinatorial_laplacian(faces: np.ndarray, num_vertices: int) -> np.ndarray:
+    """(V, V) float64 ``L = D - A`` of the mesh's edge graph (dense: templates have at most a few thousand vertices)."""
     edges = unique_edges(np.asarray(faces))
     adj = np.zeros((num_vertices, num_vertices), dtype=np.float64)
     adj[edges[:, 0], edges[:, 1]] = 1.0
     adj[edges[:, 1], edges[:, 0]] = 1.0
-    lap = np.diag(adj.sum(axis=1)) - adj
-    return np.linalg.inv(np.eye(num_vertices) + lam * lap).astype(np.float32)
+    return np.diag(adj.sum(axis=1)) - adj
 
 
-class MeshPredictor(nn.Module):
+class _TemplateOffsets(nn.Module):
+    """What both mesh predictors share: the icosphere template (non-persistent buffers, rebuilt
+    from ``template_level``), the offset scales, and ``vertices = template + local + global``."""
+
+    def _init_template(self, template_level: int, input_size: int, local_scale: float, global_scale: float,
+                       smoothing: float):
+        if not (math.isfinite(smoothing) and smoothing >= 0):
+            raise ValueError(f"smoothing must be finite and >= 0, got {smoothing}")
+        template = icosphere(template_level, TEMPLATE_RADIUS)
+        self.template_level = int(template_level)
+        self.num_vertices = template.num_vertices
+        self.smoothing = float(smoothing)
+        self.input_size = int(input_size)
+        self.local_scale = float(local_scale)
+        self.global_scale = float(global_scale)
+        self.register_buffer("template_vertices", torch.from_numpy(np.array(template.vertices)), persistent=False)
+        self.register_buffer("template_faces", torch.from_numpy(np.array(template.faces)), persistent=False)
+        return template
+
+    def vertices(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
+        """(N, V, 3) view-frame vertices ``template + local + global``."""
+        return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
+
+
+class MeshPredictor(_TemplateOffsets):
     """Normal image (N, 3, 64, 64) -> icosphere offsets (SoftRas reconstruction network).
 
     Encoder: three Conv 5x5 stride 2 (c, 2c, 4c; BatchNorm, ReLU) on 64x64, then FC to ``hidden``
@@ -253,18 +281,9 @@ class MeshPredictor(nn.Module):
         if local_bound not in LOCAL_BOUNDS:
             raise ValueError(f"local_bound must be one of {LOCAL_BOUNDS}, got {local_bound!r}")
         self.local_bound = local_bound
-        if not (math.isfinite(smoothing) and smoothing >= 0):
-            raise ValueError(f"smoothing must be finite and >= 0, got {smoothing}")
-        template = icosphere(template_level, TEMPLATE_RADIUS)
-        self.smoothing = float(smoothing)
-        self.register_buffer("offset_smoother", torch.from_numpy(smoothing_operator(np.asarray(template.faces), template.num_vertices, self.smoothing)), persistent=False)
-        self.template_level = int(template_level)
-        self.num_vertices = template.num_vertices
-        self.input_size = int(input_size)
-        self.local_scale = float(local_scale)
-        self.global_scale = float(global_scale)
-        self.register_buffer("template_vertices", torch.from_numpy(np.array(template.vertices)), persistent=False)
-        self.register_buffer("template_faces", torch.from_numpy(np.array(template.faces)), persistent=False)
+        template = self._init_template(template_level, input_size, local_scale, global_scale, smoothing)
+        self.register_buffer("offset_smoother", torch.from_numpy(
+            smoothing_operator(np.asarray(template.faces), template.num_vertices, self.smoothing)), persistent=False)
         c = int(base_channels)
         self.encoder = nn.Sequential(
             nn.Conv2d(3, c, 5, 2, 2), nn.BatchNorm2d(c), nn.ReLU(),
@@ -303,10 +322,6 @@ class MeshPredictor(nn.Module):
         glob = self.global_scale * torch.tanh(self.global_head(h))
         return local, glob
 
-    def vertices(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
-        """(N, V, 3) view-frame vertices ``template + local + global``."""
-        return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
-
 
 PREDICTOR_ARCHS = ("softras", "compact")
 """``softras``: SoftRas's encoder-decoder (26 M parameters at its widths, a V x 3 output head);
@@ -327,19 +342,14 @@ def laplacian_basis(faces: np.ndarray, num_vertices: int, modes: int, lam: float
         raise ValueError(f"modes must be in [1, {num_vertices}], got {modes}")
     if not (math.isfinite(lam) and lam >= 0):
         raise ValueError(f"lam must be finite and >= 0, got {lam}")
-    edges = unique_edges(np.asarray(faces))
-    adj = np.zeros((num_vertices, num_vertices), dtype=np.float64)
-    adj[edges[:, 0], edges[:, 1]] = 1.0
-    adj[edges[:, 1], edges[:, 0]] = 1.0
-    lap = np.diag(adj.sum(axis=1)) - adj
-    mu, phi = np.linalg.eigh(lap)
+    mu, phi = np.linalg.eigh(combinatorial_laplacian(faces, num_vertices))
     mu, phi = np.clip(mu[:modes], 0.0, None), phi[:, :modes]
     idx = np.abs(phi).argmax(axis=0)
     phi = phi * np.sign(phi[idx, np.arange(modes)])[None, :]
     return (phi * (math.sqrt(num_vertices) / (1.0 + lam * mu))[None, :]).astype(np.float32)
 
 
-class CompactMeshPredictor(nn.Module):
+class CompactMeshPredictor(_TemplateOffsets):
     """Normal image (N, 3, 64, 64) -> icosphere offsets, sized for a laptop CPU (``arch="compact"``).
 
     Same inputs, outputs and ONNX contract as :class:`MeshPredictor`; about 2 M parameters instead
@@ -383,23 +393,13 @@ class CompactMeshPredictor(nn.Module):
         super().__init__()
         if input_size % 16:
             raise ValueError(f"input_size must be a multiple of 16, got {input_size}")
-        template = icosphere(template_level, TEMPLATE_RADIUS)
-        self.template_level = int(template_level)
-        self.num_vertices = template.num_vertices
+        template = self._init_template(template_level, input_size, local_scale, global_scale, smoothing)
         self.modes = int(modes) if modes else self.num_vertices
         if not 1 <= self.modes <= self.num_vertices:
             raise ValueError(f"modes must be in [0, {self.num_vertices}] (0 = all), got {modes}")
-        if not (math.isfinite(smoothing) and smoothing >= 0):
-            raise ValueError(f"smoothing must be finite and >= 0, got {smoothing}")
-        self.smoothing = float(smoothing)
-        self.input_size = int(input_size)
-        self.local_scale = float(local_scale)
-        self.global_scale = float(global_scale)
         self.local_bound = "clamp-after"
         self.register_buffer("basis", torch.from_numpy(
             laplacian_basis(np.asarray(template.faces), self.num_vertices, self.modes, self.smoothing)), persistent=False)
-        self.register_buffer("template_vertices", torch.from_numpy(np.array(template.vertices)), persistent=False)
-        self.register_buffer("template_faces", torch.from_numpy(np.array(template.faces)), persistent=False)
         c = int(base_channels)
         layers: list[nn.Module] = []
         for cin, cout in ((3, c), (c, 2 * c), (2 * c, 4 * c), (4 * c, 8 * c)):
@@ -424,10 +424,6 @@ class CompactMeshPredictor(nn.Module):
         local = local.clamp(-bound, bound)
         glob = self.global_scale * torch.tanh(self.global_head(h))
         return local, glob
-
-    def vertices(self, local: torch.Tensor, glob: torch.Tensor) -> torch.Tensor:
-        """(N, V, 3) view-frame vertices ``template + local + global``."""
-        return self.template_vertices.to(local.dtype) + local + glob[:, None, :]
 
 
 def build_predictor(arch: str = "softras", *, template_level: int = 3, channels: int = 64, hidden: int = 1024,
