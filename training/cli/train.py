@@ -32,7 +32,7 @@ TRAIN_MEMORY_SHARE = 0.8
 
 
 def _add_config_flags(parser: argparse.ArgumentParser) -> None:
-    from training.loop.config import TrainConfig
+    from training.loop.config import DEFAULT_BATCH, TrainConfig
 
     for f in dataclasses.fields(TrainConfig):
         if f.name in _EXPLICIT:
@@ -40,6 +40,8 @@ def _add_config_flags(parser: argparse.ArgumentParser) -> None:
         flag = "--" + f.name.replace("_", "-")
         default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
         help_text = f"(default: {default!r})"
+        if f.name == "batch":
+            help_text = "per-process batch size (default: " + ", ".join(f"{k} {v}" for k, v in DEFAULT_BATCH.items()) + ")"
         if f.name == "betas":
             parser.add_argument(flag, type=float, nargs=2, default=None, metavar=("B1", "B2"), help=help_text)
         elif f.name == "categories":

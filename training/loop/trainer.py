@@ -382,6 +382,7 @@ class Trainer:
             self.wrapped = {k: DDP(m, device_ids=ids) for k, m in self.models.items()}
         self.log_columns = self._log_columns()
         self._window: dict[str, list[float]] = {}
+        self._surface_cache: dict[tuple[str, str], torch.Tensor] = {}  # supervision="3d": true surface points per shape
 
     # ---- state ----
     def _snapshot(self) -> dict:
@@ -531,8 +532,6 @@ class Trainer:
     def _true_surface_points(self, batch: dict) -> torch.Tensor:
         """(B, SURFACE_POINTS, 3) points on each sample's true surface in its input view's frame
         (``supervision="3d"`` only); sampled once per shape (seeded by its id) and kept."""
-        if not hasattr(self, "_surface_cache"):
-            self._surface_cache = {}
         pts = []
         for cat, sid in zip(batch["category"], batch["shape_id"]):
             if (cat, sid) not in self._surface_cache:
