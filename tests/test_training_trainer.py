@@ -383,3 +383,24 @@ def test_lr_warmup_ramps_linearly_and_a_compact_run_resumes_bit_identically(data
     # the architecture is part of what a checkpoint fixes: resuming as softras is refused
     with pytest.raises(TrainingError, match="predictor_arch"):
         Trainer(cfg.replace(out_dir=str(tmp_path / "b"), predictor_arch="softras", iters=5), progress=False)
+
+
+def test_cosine_schedule_follows_the_hand_computed_rates_after_the_warm_up(data_dir, tmp_path):
+    """lr_schedule=cosine: step it runs at warm-up(it) * (f + (1 - f)(1 + cos(pi it / iters)) / 2)
+    of lr_mesh, the rate the optimizer really used; bad schedule settings are refused by name."""
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), iters=4, lr_warmup=2, lr_mesh=1e-3,
+                      lr_schedule="cosine", lr_final=0.2, out_dir=str(tmp_path / "c"),
+                      **(TINY | {"predictor_arch": "compact", "predictor_modes": 20}))
+    trainer = Trainer(cfg, progress=False)
+    seen = []
+    real_step = trainer.optimizers["predictor"].step
+    trainer.optimizers["predictor"].step = lambda *a, **k: (seen.append(
+        trainer.optimizers["predictor"].param_groups[0]["lr"]), real_step(*a, **k))[1]
+    trainer.run()
+    # it = 0..3, iters = 4: cos(0)=1, cos(pi/4), cos(pi/2)=0, cos(3pi/4); warm-up 0.5 then 1
+    c = [1.0, 0.5 + 0.5 * 2 ** -0.5, 0.5, 0.5 - 0.5 * 2 ** -0.5]
+    expected = [1e-3 * w * (0.2 + 0.8 * ci) for w, ci in zip([0.5, 1, 1, 1], c)]
+    np.testing.assert_allclose(seen, expected, rtol=1e-12)
+    for bad, field in (({"lr_schedule": "step"}, "lr_schedule"), ({"lr_final": 1.5}, "lr_final")):
+        with pytest.raises(ValueError, match=field):
+            cfg.replace(**bad)

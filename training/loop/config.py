@@ -44,6 +44,10 @@ class TrainConfig:
             which the compact predictor's linear head in a smooth basis takes without crumpling).
         lr_warmup: the predictor's learning rate rises linearly from 0 over this many first
             iterations (0: off); the generator's RMSProp rates stay constant.
+        lr_schedule: the predictor's rate after the warm-up: "constant" or "cosine" (half a cosine
+            from ``lr_mesh`` at step 0 down to ``lr_final * lr_mesh`` at step ``iters``; a run cut
+            short by ``max_minutes`` should set ``iters`` to what fits in the time).
+        lr_final: the cosine schedule's final fraction of ``lr_mesh``.
         lambda_n, lambda_s, lambda_e, lambda_m: Eq. 6 weights (paper: 0.002, 0.9, 0.9, 0.01);
             ``lambda_n = 0`` trains the silhouette-only baseline.
         lambda_g, lambda_l: Eq. 10 weights of the global and local (Sobel-sampled) L1 terms.
@@ -98,6 +102,8 @@ class TrainConfig:
     lr_mesh: float = 2e-3
     betas: tuple[float, float] = (0.9, 0.999)
     lr_warmup: int = 100
+    lr_schedule: str = "constant"
+    lr_final: float = 0.05
     lambda_n: float = 0.002
     lambda_s: float = 0.9
     lambda_e: float = 0.9
@@ -157,6 +163,10 @@ class TrainConfig:
             problems.append(f"supervision must be '2d' or '3d', got {self.supervision!r}")
         elif self.supervision == "3d" and self.mode != "mesh":
             problems.append(f"supervision '3d' (the diagnostic ceiling) is for mesh mode only, not {self.mode!r}")
+        if self.lr_schedule not in ("constant", "cosine"):
+            problems.append(f"lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}")
+        if not 0 <= float(self.lr_final) <= 1:
+            problems.append(f"lr_final must be in [0, 1], got {self.lr_final}")
         if self.shading not in ("flat", "smooth"):
             problems.append(f"shading must be 'flat' or 'smooth', got {self.shading!r}")
         for name in ("iters", "base_channels", "predictor_channels", "predictor_hidden",

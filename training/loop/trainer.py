@@ -44,6 +44,7 @@ from __future__ import annotations
 import copy
 import csv
 import io
+import math
 import os
 import time
 import zlib
@@ -424,9 +425,15 @@ class Trainer:
                     group["betas"] = self.cfg.betas
 
     def _set_learning_rates(self, it: int) -> None:
-        """The predictor's linear warm-up: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)``
-        of ``lr_mesh``. The generator and discriminator keep the paper's constant RMSProp rates."""
-        scale = min(1.0, (it + 1) / self.cfg.lr_warmup) if self.cfg.lr_warmup else 1.0
+        """The predictor's schedule: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)`` of
+        ``lr_mesh`` (the linear warm-up), times, with ``lr_schedule="cosine"``,
+        ``f + (1 - f) (1 + cos(pi it / iters)) / 2`` with ``f = lr_final``. The generator and the
+        discriminator keep the paper's constant RMSProp rates."""
+        cfg = self.cfg
+        scale = min(1.0, (it + 1) / cfg.lr_warmup) if cfg.lr_warmup else 1.0
+        if cfg.lr_schedule == "cosine":
+            t = min(1.0, it / cfg.iters)
+            scale *= cfg.lr_final + (1.0 - cfg.lr_final) * 0.5 * (1.0 + math.cos(math.pi * t))
         lrs = {"generator": self.cfg.lr_g, "discriminator": self.cfg.lr_d, "predictor": self.cfg.lr_mesh * scale}
         for name, opt in self.optimizers.items():
             for group in opt.param_groups:
