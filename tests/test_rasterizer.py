@@ -15,6 +15,7 @@ from engine.camera import Camera, look_at, view_camera
 from engine.icosphere import icosphere
 from engine.mesh import Mesh, face_normals
 from training.render import RenderOutput, cameras_to_tensor, rasterize, render_normals_numpy
+from training.render.rasterize import project_vertices
 from training.render.reference import reference_rasterize
 
 # `training.render.rasterize` the attribute is the function; the module is reached this way
@@ -229,6 +230,61 @@ def test_delta_scales_the_edge_gradient():
         grads.append(v.grad)
     assert float(grads[0].abs().max()) > 0
     _assert_close(grads[1] * 4.0, grads[0], 1e-12 * float(grads[0].abs().max()), "1/delta scaling")
+
+
+@pytest.mark.parametrize("scene", ["soup1", "ico1"])
+@pytest.mark.parametrize("edge_range", [3, 16])
+def test_far_range_gradient_matches_the_loop_reference(scene, edge_range):
+    """edge_range > 1 (NMR-like far events): the vectorised backward equals the loop reference's,
+    and differs from the adjacent-pixel variant (the far events are really there)."""
+    v, f, cams = _ico_scene(4, level=1, B=1) if scene == "ico1" else _random_scene(1)
+    size = 16 if scene == "ico1" else 10
+    weights = torch.randn(v.shape[0], 4, size, size, generator=torch.Generator().manual_seed(5), dtype=torch.float64)
+    grads = []
+    for fn, er in ((rasterize, edge_range), (reference_rasterize, edge_range), (rasterize, 1)):
+        w = v.clone().requires_grad_()
+        (_cat_image(fn(w, f, cams, size, delta=0.7, edge_range=er)) * weights).sum().backward()
+        grads.append(w.grad)
+    scale = float(grads[1].abs().max())
+    assert scale > 0
+    _assert_close(grads[0], grads[1], GRAD_RTOL_F64 * scale, "far-range vertex gradient")
+    assert float((grads[0] - grads[2]).abs().max()) > 1e-3 * scale, "far range changed nothing"
+
+
+def test_far_range_pulls_a_square_towards_a_disjoint_target():
+    """A target square 2 px of background to the right of the square, not touching it: no adjacent
+    pair sees it (zero gradient with edge_range 1 and 2); with edge_range 8 the right edge is
+    pulled right by the hand-computed far events of its 6 rows: the target pixels 21..26 lie
+    j = 2..7 px beyond the first outside pixel (19), each has g = -1 / |T| on the silhouette
+    channel and D = 1 - tau + j, with tau the edge's distance from the last inside centre."""
+    cam = cameras_to_tensor([view_camera(3.0)], dtype=torch.float64)
+    size = 32
+    target = rasterize(_square(0.45, 0.0, 0.15), SQUARE_FACES, cam, size).silhouette.detach()
+    sq = _square(0.0, 0.0, 0.15)
+    screen = project_vertices(sq, cam, size)[1][0]
+    assert target[0].any(0).nonzero().flatten().tolist() == list(range(21, 27))
+    grads = {}
+    for er in (1, 2, 8):
+        v = sq.clone().requires_grad_()
+        sil = rasterize(v, SQUARE_FACES, cam, size, edge_range=er).silhouette
+        assert sil[0].any(0).nonzero().flatten().tolist() == list(range(13, 19))
+        (-(sil * target).sum() / target.sum()).backward()
+        grads[er] = v.grad[0]
+    assert float(grads[1].abs().max()) == 0.0 and float(grads[2].abs().max()) == 0.0
+    g8 = grads[8]
+    tau = float(screen[1, 0]) - 18.5
+    px_per_unit = float(screen[1, 0] - screen[0, 0]) / 0.3
+    expected = 6 * sum(-1.0 / 36.0 / (1.0 - tau + j) for j in range(2, 8)) * px_per_unit
+    assert float(g8[:, 1].abs().max()) == 0.0  # no vertical events reach the target
+    assert float(g8[[0, 3], 0].abs().max()) == 0.0  # the left edge feels nothing
+    np.testing.assert_allclose(float(g8[[1, 2], 0].sum()), expected, rtol=1e-9)
+
+
+def test_edge_range_must_be_a_positive_int():
+    cam = cameras_to_tensor([view_camera(3.0)], dtype=torch.float64)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="edge_range"):
+            rasterize(_square(0.0, 0.0, 0.15), SQUARE_FACES, cam, 8, edge_range=bad)
 
 
 # ---- edge rule, ties -------------------------------------------------------------------------

@@ -38,3 +38,20 @@ def test_silhouette_gradient_matches_area_finite_differences(name):
         assert 2.0 <= r.scale <= 25.0, f"{name} {r.direction}: |approx|/|fd| = {r.scale:.2f}"
     ratio = shrink.scale / grow.scale
     assert 1 / 2.5 <= ratio <= 2.5, f"{name}: shrink/grow strength ratio {ratio:.2f} (grow {grow.scale:.2f})"
+
+
+@pytest.mark.parametrize("name", ["ico3", "waisted"])
+def test_far_range_gradient_keeps_the_signs_and_the_balance(name):
+    """edge_range 4 adds the events of pixels up to 4 px from the outline: the same directions,
+    growing and shrinking alike, somewhat stronger (each far pixel adds 1 / D, D = 1.5 .. 3.5)."""
+    mesh = _waisted() if name == "waisted" else icosphere(3)
+    cam = frame_camera(look_at(30.0, 20.0), np.asarray(mesh.vertices, np.float64))
+    near, = silhouette_gradient_check(mesh, cam, num_vertices=10, window_res=128)[:1]
+    grow, shrink = silhouette_gradient_check(mesh, cam, num_vertices=10, window_res=128, edge_range=4)
+    for r in (grow, shrink):
+        assert r.components >= 10
+        assert r.sign_agreement >= 0.9, f"{name} {r.direction}: signs agree on {r.sign_agreement:.2f}"
+        assert r.cosine >= 0.5, f"{name} {r.direction}: cosine {r.cosine:.2f}"
+        assert 2.0 <= r.scale <= 40.0, f"{name} {r.direction}: |approx|/|fd| = {r.scale:.2f}"
+    assert grow.scale > near.scale, "the far events add nothing"
+    assert 1 / 2.5 <= shrink.scale / grow.scale <= 2.5

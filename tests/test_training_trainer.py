@@ -16,7 +16,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from engine.camera import look_at  # noqa: E402
 from engine.errors import ModelError  # noqa: E402
+from engine.icosphere import icosphere  # noqa: E402
 from training.loop.checkpoint import (  # noqa: E402
     checkpoint_paths,
     load_latest_checkpoint,
@@ -404,3 +406,36 @@ def test_cosine_schedule_follows_the_hand_computed_rates_after_the_warm_up(data_
     for bad, field in (({"lr_schedule": "step"}, "lr_schedule"), ({"lr_final": 1.5}, "lr_final")):
         with pytest.raises(ValueError, match=field):
             cfg.replace(**bad)
+
+
+def test_silhouette_variants_reach_the_mesh_loss_renders(data_dir, tmp_path):
+    """silhouette="soft" renders the loss's silhouettes with SoftRas's soft silhouette (values
+    strictly between 0 and 1 at the outline, equal to soft_silhouette's), edge_range reaches the
+    Eq. 1 backward; both train with finite losses; bad values are refused by name."""
+    from training.loop.trainer import render_views
+    from training.render import cameras_to_tensor
+    from training.render.soft import soft_silhouette
+
+    mesh = icosphere(2)
+    v = torch.tensor(np.asarray(mesh.vertices), dtype=torch.float32)[None] * 0.7
+    f = torch.tensor(np.asarray(mesh.faces))
+    cams = cameras_to_tensor([look_at(30.0, 30.0), look_at(120.0, 30.0)])[None]  # (1, 2, 16)
+    base = TrainConfig(mode="mesh", render_size=32)
+    soft = render_views(v, f, cams, base.replace(silhouette="soft", soft_sigma=3e-4)).silhouette
+    assert bool(((soft > 0.05) & (soft < 0.95)).any())
+    torch.testing.assert_close(soft, soft_silhouette(v.expand(2, -1, -1), f, cams[0], 32, sigma=3e-4))
+    grads = []
+    for er in (1, 3):
+        w = v.clone().requires_grad_()
+        (render_views(w, f, cams, base.replace(edge_range=er)).silhouette * torch.linspace(-1, 1, 32)).sum().backward()
+        grads.append(w.grad)
+    assert float((grads[0] - grads[1]).abs().max()) > 0
+    for variant in ({"silhouette": "soft"}, {"edge_range": 4}):
+        cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / str(variant)), iters=2,
+                          **(TINY | variant))
+        metrics = Trainer(cfg, progress=False).run()
+        assert all(np.isfinite(x) for x in metrics.values()), metrics
+    for bad, field in (({"silhouette": "hard"}, "silhouette"), ({"edge_range": 0}, "edge_range"),
+                       ({"soft_sigma": 0.0}, "soft_sigma")):
+        with pytest.raises(ValueError, match=field):
+            base.replace(**bad)

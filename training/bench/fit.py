@@ -148,6 +148,9 @@ def fit_mesh(
     voxel_resolution: int = DEFAULT_VOXEL_RESOLUTION,
     normal_region: str = DEFAULT_NORMAL_REGION,
     smoothing: float = DEFAULT_SMOOTHING,
+    edge_range: int = 1,
+    silhouette: str = "eq1",
+    soft_sigma: float = 1e-4,
 ) -> FitResult:
     """Deform the icosphere so its renders match the target's from ``views`` views.
 
@@ -168,6 +171,8 @@ def fit_mesh(
             ``"target"`` (inside the target silhouette only), see :class:`training.model.losses.MeshLoss`.
         smoothing: ``lambda`` of the large-steps parametrisation (Nicolet et al. 2021): Adam moves
             ``u`` and the local offsets are ``(I + lambda L)^-1 u``; 0 moves the offsets directly.
+        edge_range, silhouette, soft_sigma: the silhouette-gradient variant (see
+            :func:`training.render.soft.rasterize_for_loss`); the final scores use the hard silhouette.
 
     Returns:
         :class:`FitResult`.
@@ -196,6 +201,7 @@ def fit_mesh(
     view_list = fit_views(views)
 
     from training.render import cameras_to_tensor, rasterize
+    from training.render.soft import rasterize_for_loss
 
     dtype = torch.float32
     template = icosphere(level)
@@ -246,7 +252,8 @@ def fit_mesh(
     try:
         for it in range(iters):
             verts = current_vertices().expand(n_views, -1, -1)  # (N, V, 3)
-            out = rasterize(verts, faces, cam_t, resolution, delta=delta, shading=shading)
+            out = rasterize_for_loss(verts, faces, cam_t, resolution, delta=delta, shading=shading,
+                                     edge_range=edge_range, silhouette=silhouette, soft_sigma=soft_sigma)
             loss, log = mesh_loss(verts, out.normals, target_normals, out.silhouette, target_sil)
             # the edge and smoothness terms are per mesh: the N copies average to the one mesh's value
             if not math.isfinite(log["total"]):

@@ -77,6 +77,13 @@ class TrainConfig:
         lambda_chamfer: weight of the Chamfer term with ``supervision="3d"``.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
+        edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
+            adjacent pixel pairs; larger values add NMR-like farther events (see
+            :mod:`training.render.rasterize`, "Far range").
+        silhouette: "eq1" (the method: the rasterizer's silhouette with the Eq. 1 gradient) or
+            "soft", SoftRas's soft silhouette (:mod:`training.render.soft`), an outside reference
+            for the comparison, not the paper's method.
+        soft_sigma: SoftRas's sharpness (NDC units squared) with ``silhouette="soft"``.
         shading: "flat" or "smooth" normals in the rendered normal image.
         grad_clip: max global gradient norm per model (0 disables clipping).
         max_bad_steps: consecutive non-finite steps after which the last good state is restored.
@@ -130,6 +137,9 @@ class TrainConfig:
     sketch_size: int = 256
     render_size: int = 64
     delta: float = 1.0
+    edge_range: int = 1
+    silhouette: str = "eq1"
+    soft_sigma: float = 1e-4
     shading: str = "flat"
     grad_clip: float = 10.0
     max_bad_steps: int = 5
@@ -163,13 +173,15 @@ class TrainConfig:
             problems.append(f"supervision must be '2d' or '3d', got {self.supervision!r}")
         elif self.supervision == "3d" and self.mode != "mesh":
             problems.append(f"supervision '3d' (the diagnostic ceiling) is for mesh mode only, not {self.mode!r}")
+        if self.silhouette not in ("eq1", "soft"):
+            problems.append(f"silhouette must be 'eq1' or 'soft', got {self.silhouette!r}")
         if self.lr_schedule not in ("constant", "cosine"):
             problems.append(f"lr_schedule must be 'constant' or 'cosine', got {self.lr_schedule!r}")
         if not 0 <= float(self.lr_final) <= 1:
             problems.append(f"lr_final must be in [0, 1], got {self.lr_final}")
         if self.shading not in ("flat", "smooth"):
             problems.append(f"shading must be 'flat' or 'smooth', got {self.shading!r}")
-        for name in ("iters", "base_channels", "predictor_channels", "predictor_hidden",
+        for name in ("iters", "edge_range", "base_channels", "predictor_channels", "predictor_hidden",
                      "predictor_latent", "sobel_samples", "max_bad_steps", "sketch_size", "render_size"):
             if int(getattr(self, name)) < 1:
                 problems.append(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -179,7 +191,7 @@ class TrainConfig:
                 problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.template_level <= 5:
             problems.append(f"template_level must be in [0, 5], got {self.template_level}")
-        for name in ("lr_g", "lr_d", "lr_mesh", "delta"):
+        for name in ("lr_g", "lr_d", "lr_mesh", "delta", "soft_sigma"):
             v = float(getattr(self, name))
             if not (v > 0 and v < float("inf")):
                 problems.append(f"{name} must be finite and > 0, got {v}")

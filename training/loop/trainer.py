@@ -293,11 +293,13 @@ def render_views(vertices: torch.Tensor, faces: torch.Tensor, cameras: torch.Ten
     Returns:
         RenderOutput of batch B * (1 + K) (view-major within each item).
     """
-    from training.render import rasterize
+    from training.render.soft import rasterize_for_loss
 
     b, nv = cameras.shape[:2]
     vv = vertices[:, None].expand(b, nv, *vertices.shape[1:]).reshape(b * nv, *vertices.shape[1:])
-    return rasterize(vv, faces, cameras.reshape(b * nv, 16), cfg.render_size, delta=cfg.delta, shading=cfg.shading)
+    return rasterize_for_loss(vv, faces, cameras.reshape(b * nv, 16), cfg.render_size, delta=cfg.delta,
+                              shading=cfg.shading, edge_range=cfg.edge_range, silhouette=cfg.silhouette,
+                              soft_sigma=cfg.soft_sigma)
 
 
 def mesh_targets(batch: dict) -> tuple[torch.Tensor, torch.Tensor]:

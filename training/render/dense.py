@@ -60,5 +60,5 @@ def dense_rasterize(vertices, faces, cameras, image_size, *, delta=1.0, shading=
     face_index, depth, coef, keep = _dense_fragments(screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces)
     image = _R._shade(p_cam, screen, inv_w, faces, face_index, shading)
     if image.requires_grad or screen.requires_grad:
-        image = _R._EdgeGradient.apply(image, screen, face_index, coef, keep, faces, float(delta))
+        image = _R._EdgeGradient.apply(image, screen, face_index, coef, keep, faces, float(delta), 1)
     return _R.RenderOutput(normals=image[:, :3], silhouette=image[:, 3], depth=depth, face_index=face_index)

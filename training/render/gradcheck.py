@@ -102,6 +102,7 @@ def silhouette_gradient_check(
     window_res: int = 256,
     delta: float = 1.0,
     seed: int = 0,
+    edge_range: int = 1,
 ) -> list[GradCheck]:
     """Compare Eq. 1's silhouette gradient with central differences of the supersampled area.
 
@@ -116,6 +117,7 @@ def silhouette_gradient_check(
         window_res: side of the supersampled window render.
         delta: Eq. 1 strength.
         seed: vertex sampling seed.
+        edge_range: the gradient's reach in pixels (1: adjacent pairs; see :func:`rasterize`).
 
     Returns:
         Two :class:`GradCheck`, for growing and shrinking.
@@ -126,7 +128,7 @@ def silhouette_gradient_check(
     approx = {}
     for direction, sign in (("grow", -1.0), ("shrink", 1.0)):
         vg = v.clone().requires_grad_()
-        (sign * rasterize(vg[None], f, cam, image_size, delta=delta).silhouette.sum()).backward()
+        (sign * rasterize(vg[None], f, cam, image_size, delta=delta, edge_range=edge_range).silhouette.sum()).backward()
         approx[direction] = vg.grad.numpy()
     _, screen, inv_w, _ = project_vertices(v[None], cam, image_size)
     screen = screen[0].numpy()

@@ -150,7 +150,7 @@ def _first_exit(es, et):
     return best_tau, best_k
 
 
-def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, faces, infos, delta):
+def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, faces, infos, delta, edge_range=1):
     """Loop version of the Eq. 1 gradient for one image.
 
     Args:
@@ -234,6 +234,26 @@ def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, fac
                     dldc += sigma * dl_t / (delta * d_t)
                 if dl_s < 0:
                     dldc -= sigma * dl_s / (delta * d_s)
+                # far range: pixels beyond t take s's colour, pixels beyond s take t's colour
+                sp, tp = ((row, col), (rq, cq)) if p_wins else ((rq, cq), (row, col))
+                silhouette_pair = face_index[tp[0]][tp[1]] < 0
+                for start, new, sgn, d0, factor in ((tp, colour(*sp), sigma, 1.0 - tau, sigma),
+                                                     (sp, colour(*tp), -sigma, tau, -sigma)):
+                    f0 = face_index[start[0]][start[1]]
+                    for j in range(1, edge_range):
+                        r, c = start
+                        if axis == 0:
+                            c = int(c + sgn * j)
+                        else:
+                            r = int(r + sgn * j)
+                        if not (0 <= r < S and 0 <= c < S):
+                            break
+                        fj = face_index[r][c]
+                        if (silhouette_pair and (fj >= 0) != (f0 >= 0)) or (not silhouette_pair and fj != f0):
+                            break
+                        lj = sum(gcol(r, c)[ch] * (new[ch] - colour(r, c)[ch]) for ch in range(4))
+                        if lj < 0:
+                            dldc += factor * lj / (delta * (d0 + j))
                 va = faces[face][(best_k + 1) % 3]
                 vb = faces[face][(best_k + 2) % 3]
                 pa, pb = screen_xy[va], screen_xy[vb]
@@ -249,15 +269,15 @@ def reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, fac
 
 class _RefEdge(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, image, screen, face_index, screen_xy, inv_w, faces, infos, delta):
-        ctx.stuff = (image.detach(), face_index, screen_xy, inv_w, faces, infos, delta)
+    def forward(ctx, image, screen, face_index, screen_xy, inv_w, faces, infos, delta, edge_range):
+        ctx.stuff = (image.detach(), face_index, screen_xy, inv_w, faces, infos, delta, edge_range)
         return image.clone()
 
     @staticmethod
     def backward(ctx, grad_image):
-        image, face_index, screen_xy, inv_w, faces, infos, delta = ctx.stuff
-        g = reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, faces, infos, delta)
-        return grad_image, torch.tensor(g, dtype=image.dtype), None, None, None, None, None, None
+        image, face_index, screen_xy, inv_w, faces, infos, delta, edge_range = ctx.stuff
+        g = reference_edge_gradient(image, grad_image, face_index, screen_xy, inv_w, faces, infos, delta, edge_range)
+        return grad_image, torch.tensor(g, dtype=image.dtype), None, None, None, None, None, None, None
 
 
 def reference_rasterize(
@@ -269,6 +289,7 @@ def reference_rasterize(
     delta: float = 1.0,
     shading: str = "flat",
     cull_backfaces: bool = False,
+    edge_range: int = 1,
 ) -> RenderOutput:
     """Loop reference with the signature and outputs of :func:`~training.render.rasterize.rasterize`.
 
@@ -323,7 +344,7 @@ def reference_rasterize(
                 pixels.append(torch.cat([(n + 1.0) * 0.5, n.new_ones(1)]))
         image = torch.stack(pixels).view(S, S, 4).permute(2, 0, 1)
         if image.requires_grad or screen_t.requires_grad:
-            image = _RefEdge.apply(image, screen_t, fi, screen_xy, inv_w, faces_l, infos, float(delta))
+            image = _RefEdge.apply(image, screen_t, fi, screen_xy, inv_w, faces_l, infos, float(delta), int(edge_range))
         normals_out.append(image[:3])
         sil_out.append(image[3])
         depth_out.append(torch.tensor(depth, dtype=vertices.dtype))
