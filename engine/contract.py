@@ -18,7 +18,10 @@ Metadata (``metadata_props`` of each model, all strings)
     "mesh_predictor"), ``code_version``, ``config`` (JSON of the resolved training config),
     ``conventions`` (= CONVENTIONS_ID); the mesh predictor also carries
     ``template_level`` (e.g. "3") and ``template_radius``; the generator carries
-    ``base_channels``. ``quantization`` ("none" or "int8-dynamic") is optional.
+    ``base_channels`` and ``generator_arch`` ("resize" or "pix2pix"; absent from exports that
+    predate the option, which are "pix2pix"). ``quantization`` ("none" or "int8-dynamic") is optional.
+    The engine only reads the required keys and the predictor's template: the others describe the
+    model (the graph itself is what runs) and may be absent.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ META_CONVENTIONS = "conventions"
 META_TEMPLATE_LEVEL = "template_level"
 META_TEMPLATE_RADIUS = "template_radius"
 META_BASE_CHANNELS = "base_channels"
+META_GENERATOR_ARCH = "generator_arch"
 META_QUANTIZATION = "quantization"
 PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,

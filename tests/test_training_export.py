@@ -61,6 +61,7 @@ def test_export_writes_contract_names_and_metadata(exported, run_dir):
         assert TrainConfig.from_json(meta[C.META_CONFIG]).mode == "joint"
         assert meta[C.META_CODE_VERSION].startswith("0.")
     assert g[C.META_BASE_CHANNELS] == "8" and g[C.META_QUANTIZATION] == "none"
+    assert g[C.META_GENERATOR_ARCH] == "resize"  # rebuilt from the run's config (the default arch)
     assert p[C.META_TEMPLATE_LEVEL] == "2" and float(p[C.META_TEMPLATE_RADIUS]) == 0.5
     assert onnx.load(str(gen)).opset_import[0].version >= 17
     sess = ort.InferenceSession(str(pred), providers=["CPUExecutionProvider"])
@@ -120,13 +121,50 @@ def test_int8_all_export_quantizes_both_networks(run_dir, tmp_path, exported):
     reports = export_run(run_dir, tmp_path, quantize="int8-all")
     assert {r.role: r.quantization for r in reports} == {C.ROLE_GENERATOR: "int8-dynamic", C.ROLE_PREDICTOR: "int8-dynamic"}
     assert _meta(tmp_path / C.GENERATOR_FILE)[C.META_QUANTIZATION] == "int8-dynamic"
-    # the encoder's Conv weights become int8; the decoder's ConvTranspose weights stay float32
+    # the Conv weights become int8 (with the default resize arch, the decoder's too; a pix2pix decoder's
+    # ConvTranspose weights would stay float32)
     assert (tmp_path / C.GENERATOR_FILE).stat().st_size < 0.8 * (exported / C.GENERATOR_FILE).stat().st_size
     assert all(r.max_abs_error <= r.tolerance for r in reports)
     sketch = np.zeros((256, 256), np.float32)
     sketch[60:200, 128] = 1.0
     pred = SketchEngine(tmp_path, threads=1).predict(sketch)  # the engine runs the quantised pair
     assert np.isfinite(pred.mesh.vertices).all()
+
+
+@pytest.mark.parametrize("arch", ["resize", "pix2pix"])
+def test_generator_export_matches_torch_for_both_archs(arch, tmp_path):
+    """Reflect pads and nearest Resize (resize arch) or ConvTranspose (pix2pix) run in ONNX Runtime like torch;
+    the arch is in the metadata; the resize generator keeps a blank sketch blank in ONNX Runtime too."""
+    from training.export.to_onnx import parity_inputs
+    from training.model.networks import NormalGenerator
+
+    torch.manual_seed(0)
+    g = NormalGenerator(4, arch=arch)
+    sketches, normals64, _ = parity_inputs(TrainConfig(data_dir=str(tmp_path / "no_data")))
+    (report,) = export_models(g, None, tmp_path, config_json=TrainConfig(generator_arch=arch).to_json(),
+                              code_version="t", sketches=sketches, normals64=normals64)
+    assert report.max_abs_error <= PARITY_TOLERANCE
+    path = tmp_path / C.GENERATOR_FILE
+    meta = _meta(path)
+    assert meta[C.META_GENERATOR_ARCH] == arch and meta[C.META_BASE_CHANNELS] == "4"
+    nodes = onnx.load(str(path)).graph.node
+    ops = {n.op_type for n in nodes}
+    pad_modes = [a.s for n in nodes if n.op_type == "Pad" for a in n.attribute if a.name == "mode"]
+    if arch == "resize":
+        assert "ConvTranspose" not in ops and "Resize" in ops
+        assert pad_modes == [b"reflect"] * 15  # 8 encoder convs + 7 decoder 3x3 convs
+    else:
+        assert "ConvTranspose" in ops and "Resize" not in ops and not pad_modes
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    rng = np.random.default_rng(2)
+    x = np.concatenate([(rng.random((2, 1, 256, 256)) > 0.97).astype(np.float32),
+                        np.zeros((1, 1, 256, 256), np.float32), np.full((1, 1, 256, 256), 0.3, np.float32)])
+    (out,) = sess.run(None, {C.GENERATOR_INPUT: x})
+    with torch.no_grad():
+        ref = g.eval()(torch.from_numpy(x)).numpy()
+    assert np.abs(out - ref).max() < PARITY_TOLERANCE
+    spread = (out[2:].max(axis=(2, 3)) - out[2:].min(axis=(2, 3))).max()
+    assert spread < 1e-5 if arch == "resize" else spread > 1e-3
 
 
 def test_failed_parity_writes_nothing(run_dir, tmp_path, monkeypatch):

@@ -43,26 +43,63 @@ def test_generator_parameter_count_matches_hand_count():
     down = (16 * 1 * 4 + 4) + 16 * 4 * 8 + 16 * 8 * 16 + 16 * 16 * 32 + 3 * 16 * 32 * 32 + (16 * 32 * 32 + 32)
     up = 16 * 32 * 32 + 3 * (16 * 64 * 32) + 16 * 64 * 16 + 16 * 32 * 8 + 16 * 16 * 4 + (16 * 8 * 3 + 3)
     assert down + up == 212967
-    assert n_params(NormalGenerator(4)) == 212967
+    assert n_params(NormalGenerator(4, arch="pix2pix")) == 212967  # the bundled models' layers, unchanged
+    # resize: the same encoder (reflect padding has no parameters); decoder 3x3 convs (9 weights per pair),
+    # except the innermost, a 1x1 conv with a bias (it sees the 1x1 code broadcast to 2x2, no InstanceNorm)
+    up_resize = (32 * 32 + 32) + 3 * (9 * 64 * 32) + 9 * 64 * 16 + 9 * 32 * 8 + 9 * 16 * 4 + (9 * 8 * 3 + 3)
+    assert down == 76388 and up_resize == 68667
+    assert n_params(NormalGenerator(4, arch="resize")) == down + up_resize == 145055
+    assert n_params(NormalGenerator(4)) == 145055  # resize is the default
 
 
-def test_generator_output_shape_and_range():
-    g = NormalGenerator(4).eval()
+@pytest.mark.parametrize("arch", ["resize", "pix2pix"])
+def test_generator_output_shape_and_range(arch):
+    g = NormalGenerator(4, arch=arch).eval()
+    assert g.arch == arch and g.base_channels == 4
     x = (torch.rand(2, 1, 256, 256) > 0.95).float()
     with torch.no_grad():
         y = g(x)
     assert y.shape == (2, 3, 256, 256)
     assert torch.isfinite(y).all() and y.min() >= 0 and y.max() <= 1
+    assert (y.amax(dim=(2, 3)) - y.amin(dim=(2, 3))).min() > 1e-3  # a real sketch: the output varies
 
 
-def test_generator_eval_output_does_not_depend_on_the_batch():
+@pytest.mark.parametrize("arch", ["resize", "pix2pix"])
+def test_generator_eval_output_does_not_depend_on_the_batch(arch):
     """InstanceNorm: a sketch gives the same normals alone (batch 1, the engine) as inside a batch."""
-    g = NormalGenerator(4).eval()
+    g = NormalGenerator(4, arch=arch).eval()
     x = torch.rand(3, 1, 256, 256)
     with torch.no_grad():
         together = g(x)
         alone = g(x[1:2])
     assert torch.allclose(together[1:2], alone, atol=1e-5)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_resize_generator_maps_a_constant_sketch_to_a_constant_image_and_pix2pix_does_not(seed):
+    """No positional artefacts: with reflect padding and resize-convolutions every layer maps a spatially
+    constant map to a constant one, so a blank (or uniformly grey) sketch gives one colour everywhere.
+    The pix2pix layers (zero padding, stride-2 transposed convs) draw a border and a checkerboard."""
+    x = torch.cat([torch.zeros(1, 1, 256, 256), torch.full((1, 1, 256, 256), 0.3)])
+    torch.manual_seed(seed)
+    resize = NormalGenerator(4, arch="resize").eval()
+    torch.manual_seed(seed)
+    pix2pix = NormalGenerator(4, arch="pix2pix").eval()
+    with torch.no_grad():
+        y_r, y_p = resize(x), pix2pix(x)
+    spread_r = y_r.amax(dim=(2, 3)) - y_r.amin(dim=(2, 3))  # (2 inputs, 3 channels)
+    assert spread_r.max() < 1e-5, spread_r
+    spread_p = y_p.amax(dim=(2, 3)) - y_p.amin(dim=(2, 3))
+    assert spread_p.min() > 1e-3, spread_p  # the check can fail: the old layers are positional
+    interior = y_p[:, :, 100:156, 100:156]
+    # the right border column differs from the interior, and neighbouring interior pixels differ (checkerboard)
+    assert (y_p[:, :, 100:156, -1] - interior[:, :, :, 0]).abs().amax() > 1e-3
+    assert (interior[:, :, :, 1:] - interior[:, :, :, :-1]).abs().amax() > 1e-3
+
+
+def test_generator_rejects_an_unknown_arch():
+    with pytest.raises(ValueError, match="arch"):
+        NormalGenerator(4, arch="unet")
 
 
 def test_generator_rejects_bad_input_with_the_shape_it_got():
@@ -326,6 +363,34 @@ def test_config_json_round_trip_and_validation():
         TrainConfig(lambda_s=float("nan"))
     with pytest.raises(ValueError, match="unknown"):
         TrainConfig.from_dict({"nope": 1})
+
+
+def test_config_generator_arch_default_validation_and_old_configs():
+    from training.cli.train import INIT_FIELDS
+    from training.loop.config import GENERATOR_ARCHS as CONFIG_ARCHS
+    from training.loop.trainer import MODEL_SHAPE_FIELDS, build_models
+    from training.model.networks import GENERATOR_ARCHS
+
+    assert CONFIG_ARCHS == GENERATOR_ARCHS  # the torch-free config's copy matches the networks'
+    assert TrainConfig().generator_arch == "resize"
+    for arch in ("resize", "pix2pix"):
+        cfg = TrainConfig(generator_arch=arch)
+        assert TrainConfig.from_json(cfg.to_json()).generator_arch == arch  # a saved value is kept
+    with pytest.raises(ValueError, match="generator_arch must be 'resize' or 'pix2pix', got 'unet'"):
+        TrainConfig(generator_arch="unet")
+    # a config saved before the option (no key) is an old run: trained with the pix2pix layers
+    old = TrainConfig(mode="normals", base_channels=4).to_dict()
+    del old["generator_arch"]
+    loaded = TrainConfig.from_dict(old)
+    assert loaded.generator_arch == "pix2pix"
+    assert TrainConfig.from_json(TrainConfig().to_json().replace('"generator_arch": "resize",', "")).generator_arch == "pix2pix"
+    # ... and its generator is rebuilt with those layers, so the old weights load strictly
+    gen = build_models(loaded)["generator"]
+    assert gen.arch == "pix2pix" and gen.base_channels == 4
+    gen.load_state_dict(NormalGenerator(4, arch="pix2pix").state_dict())
+    assert build_models(TrainConfig(mode="joint", base_channels=4))["generator"].arch == "resize"
+    # a run cannot resume, nor hand its generator over, across archs
+    assert "generator_arch" in MODEL_SHAPE_FIELDS and "generator_arch" in INIT_FIELDS["generator"]
 
 
 def test_laplacian_basis_full_is_the_large_steps_smoother_in_the_eigenbasis():

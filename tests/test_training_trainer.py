@@ -439,3 +439,18 @@ def test_silhouette_variants_reach_the_mesh_loss_renders(data_dir, tmp_path):
                        ({"soft_sigma": 0.0}, "soft_sigma")):
         with pytest.raises(ValueError, match=field):
             base.replace(**bad)
+
+
+def test_generator_arch_binds_a_resume_only_where_there_is_a_generator(data_dir, tmp_path):
+    """A mesh run (no generator) resumes whatever generator_arch says (old mesh checkpoints load as
+    'pix2pix'); a normals run refuses to resume with another generator architecture."""
+    mesh_cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "m"), iters=1,
+                           generator_arch="pix2pix", **TINY)
+    Trainer(mesh_cfg, progress=False).run()
+    resumed = Trainer(mesh_cfg.replace(generator_arch="resize", iters=2), progress=False)
+    assert resumed.iteration == 1
+    norm_cfg = TrainConfig(mode="normals", data_dir=str(data_dir), out_dir=str(tmp_path / "n"), iters=1,
+                           generator_arch="pix2pix", **TINY)
+    Trainer(norm_cfg, progress=False).run()
+    with pytest.raises(TrainingError, match="generator_arch"):
+        Trainer(norm_cfg.replace(generator_arch="resize", iters=2), progress=False)

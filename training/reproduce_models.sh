@@ -33,16 +33,19 @@ LOCAL_BOUND=${LOCAL_BOUND:-tanh}
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
            --predictor-local-bound "$LOCAL_BOUND" --lr-mesh 1e-4 --lr-warmup 0 --extra-views 1)
+# The bundled generator's architecture, pinned likewise: new trainings default to "resize" (reflect padding,
+# resize-convolutions), the bundled generator is the original pix2pix U-Net (zero padding, transposed convolutions).
+GENERATOR=(--generator-arch pix2pix)
 
 step() {
   case "$1" in
     data)
       sketchmesh data --source procedural --shapes-per-category 30 --workers 2 --out "$DATA" ;;
     normals)  # width 32: compared in the error-against-run-time table (too large to bundle, see the card)
-      sketchmesh train normals --data "$DATA" --out "$RUNS/normals32" --base-channels 32 --batch 4 \
+      sketchmesh train normals --data "$DATA" --out "$RUNS/normals32" --base-channels 32 --batch 4 "${GENERATOR[@]}" \
         --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
     normals16)  # width 16: the bundled generator
-      sketchmesh train normals --data "$DATA" --out "$RUNS/normals16" --base-channels 16 --batch 4 \
+      sketchmesh train normals --data "$DATA" --out "$RUNS/normals16" --base-channels 16 --batch 4 "${GENERATOR[@]}" \
         --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
     mesh)
       sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_full" --batch 8 "${PREDICTOR[@]}" \
@@ -59,7 +62,7 @@ step() {
         --extra-views 1 --normal-region target --iters 1000 --threads 2 --log-every 50 \
         --ckpt-every 250 --val-every 500 ;;
     joint)
-      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${PREDICTOR[@]}" \
+      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${GENERATOR[@]}" "${PREDICTOR[@]}" \
         --normal-region target --init-normals "$RUNS/normals16" --init-mesh "$RUNS/mesh_full" \
         --iters "$JOINT_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
     export)  # the bundled pair (joint fine-tune; width-16 generator float32, predictor int8) and the

@@ -6,7 +6,7 @@
 
 Both have a dynamic batch axis N, opset :data:`OPSET`, and carry the contract's metadata
 (format, role, code version, resolved config JSON, conventions id, template level and radius /
-base channels, quantization). They are produced by the TorchScript-based exporter
+base channels and generator arch, quantization). They are produced by the TorchScript-based exporter
 (``torch.onnx.export(..., dynamo=False)``): it handles the U-Net's InstanceNorm and the predictor's
 BatchNorm (folded in eval mode) in one pass with no graph-break risk, and its output is what
 ``onnxruntime.quantization.quantize_dynamic`` expects. Every file is written atomically, and the
@@ -17,9 +17,14 @@ export reports success only after ONNX Runtime reproduces torch on real inputs w
 fully connected layers, where it halves latency and quarters the size; it does not pay for the
 U-Net in speed (ConvTranspose layers stay float, QInt8 convolutions are slower on CPU;
 /work/shared/MEASUREMENTS.md). ``--quantize int8-all`` also quantises the generator's Conv
-weights (ONNX Runtime's dynamic quantisation leaves ConvTranspose, the decoder, in float32): it
-is slower and only somewhat smaller (the width-32 generator: 54 -> 40 MB); ``sketchmesh bench
-tradeoff`` measures both against accuracy.
+weights (ONNX Runtime's dynamic quantisation leaves ConvTranspose, the decoder of the
+``pix2pix`` generator arch, in float32; the ``resize`` arch's decoder is Conv and is quantised
+too): it is slower and only somewhat smaller (the width-32 pix2pix generator: 54 -> 40 MB);
+``sketchmesh bench tradeoff`` measures both against accuracy.
+
+The generator is rebuilt from its run's config (``generator_arch``: reflect pads and nearest
+``Resize`` nodes for "resize", ``ConvTranspose`` for "pix2pix"); its arch is written to the
+metadata next to ``base_channels``.
 """
 
 from __future__ import annotations
@@ -239,6 +244,7 @@ def export_models(
             gq, gtol = "int8-dynamic", GENERATOR_INT8_TOLERANCE
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
+                            contract.META_GENERATOR_ARCH: str(getattr(g, "arch", "pix2pix")),
                             contract.META_QUANTIZATION: gq}
         data = _with_metadata(data, meta)
         with torch.no_grad():

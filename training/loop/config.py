@@ -15,6 +15,12 @@ import engine
 
 MODES = ("normals", "mesh", "joint")
 DEVICES = ("auto", "cpu", "cuda")
+GENERATOR_ARCHS = ("resize", "pix2pix")
+"""``generator_arch`` values (the same as :data:`training.model.networks.GENERATOR_ARCHS`; kept here
+so the config stays torch-free)."""
+LEGACY_DEFAULTS = {"generator_arch": "pix2pix"}
+"""Values for keys a saved config lacks because it predates them: what those runs were trained with
+(the field's default for new runs may differ). Used by :meth:`TrainConfig.from_dict`."""
 DEFAULT_BATCH = {"normals": 4, "mesh": 32, "joint": 4}
 """What ``batch = 0`` resolves to per mode."""
 
@@ -56,6 +62,11 @@ class TrainConfig:
         sobel_samples: pixels sampled per image for Eq. 9.
         sobel_threshold: Sobel magnitude above which a ground-truth pixel is an edge (a unit step gives 4).
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
+        generator_arch: "resize" (the default: reflect padding and nearest x2 up-sampling + 3x3
+            conv in the decoder, no positional artefacts) or "pix2pix" (zero padding and transposed
+            convolutions: the bundled models' generator, which draws a checkerboard and a dotted
+            border column even on a blank sketch); see :class:`training.model.networks.NormalGenerator`.
+            A saved config without this key (a run from before the option) loads as "pix2pix".
         predictor_arch: "compact" (the default: a CPU-sized encoder with its offsets in a smooth
             Laplacian basis; see :class:`training.model.networks.CompactMeshPredictor`) or "softras"
             (SoftRas's encoder-decoder, the paper's).
@@ -122,6 +133,7 @@ class TrainConfig:
     sobel_samples: int = 512
     sobel_threshold: float = 0.5
     base_channels: int = 64
+    generator_arch: str = "resize"
     predictor_arch: str = "compact"
     predictor_channels: int = 32
     predictor_hidden: int = 512
@@ -165,6 +177,8 @@ class TrainConfig:
             problems.append(f"device must be one of {DEVICES}, got {self.device!r}")
         if self.predictor_local_bound not in ("tanh", "clamp", "clamp-after"):
             problems.append(f"predictor_local_bound must be 'tanh', 'clamp' or 'clamp-after', got {self.predictor_local_bound!r}")
+        if self.generator_arch not in GENERATOR_ARCHS:
+            problems.append(f"generator_arch must be 'resize' or 'pix2pix', got {self.generator_arch!r}")
         if self.predictor_arch not in ("softras", "compact"):
             problems.append(f"predictor_arch must be 'softras' or 'compact', got {self.predictor_arch!r}")
         if self.normal_region not in ("image", "target"):
@@ -228,11 +242,14 @@ class TrainConfig:
 
     @staticmethod
     def from_dict(d: dict) -> TrainConfig:
+        """A config from a saved dict (``to_dict``). Unknown keys are an error; a missing key takes the
+        dataclass default, except the :data:`LEGACY_DEFAULTS` (e.g. ``generator_arch`` "pix2pix")."""
         known = {f.name for f in dataclasses.fields(TrainConfig)}
         unknown = sorted(set(d) - known)
         if unknown:
             raise ValueError(f"unknown training config keys: {unknown}")
-        d = dict(d)
+        # a saved config from before a field existed: that run used the legacy value, not today's default
+        d = {**LEGACY_DEFAULTS, **d}
         for key in ("betas", "categories", "debug_nan_iters"):
             if key in d:
                 d[key] = tuple(d[key])

@@ -78,9 +78,9 @@ from training.model.networks import (
 SURFACE_POINTS = 1024
 """Points per mesh in the Chamfer term of ``supervision="3d"`` (the diagnostic ceiling)."""
 
-MODEL_SHAPE_FIELDS = ("mode", "base_channels", "predictor_arch", "predictor_channels", "predictor_hidden",
-                      "predictor_latent", "predictor_modes", "template_level", "predictor_smoothing",
-                      "predictor_local_bound", "sketch_size")
+MODEL_SHAPE_FIELDS = ("mode", "base_channels", "generator_arch", "predictor_arch", "predictor_channels",
+                      "predictor_hidden", "predictor_latent", "predictor_modes", "template_level",
+                      "predictor_smoothing", "predictor_local_bound", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes or
 the function the parameters were trained in)."""
 
@@ -152,7 +152,7 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
     """The networks a mode trains: "generator" + "discriminator" and/or "predictor"."""
     models: dict[str, nn.Module] = {}
     if cfg.uses_generator:
-        models["generator"] = NormalGenerator(cfg.base_channels)
+        models["generator"] = NormalGenerator(cfg.base_channels, arch=cfg.generator_arch)
         models["discriminator"] = PatchDiscriminator(cfg.base_channels)
     if cfg.uses_predictor:
         models["predictor"] = build_predictor(
@@ -406,8 +406,10 @@ class Trainer:
             saved = TrainConfig.from_json(state["config"])
         except (ValueError, TypeError) as exc:
             raise TrainingError(f"checkpoint {state['path']} has an unusable config: {exc}") from None
+        # a field of a network the run does not have (the generator's in mesh mode) does not bind it
+        unused = () if "generator" in self.models else ("generator_arch",)
         diffs = [f"{k}: checkpoint {getattr(saved, k)!r} vs now {getattr(self.cfg, k)!r}"
-                 for k in MODEL_SHAPE_FIELDS if getattr(saved, k) != getattr(self.cfg, k)]
+                 for k in MODEL_SHAPE_FIELDS if k not in unused and getattr(saved, k) != getattr(self.cfg, k)]
         if diffs:
             raise TrainingError(f"cannot resume {self.run_dir}: the config changed ({'; '.join(diffs)})")
         missing = [k for k in self.models if k not in state["models"]]

@@ -1,7 +1,8 @@
 """The two networks of the paper and the generator's losses (paper sections 3.2, 3.3, 4.1).
 
-* :class:`NormalGenerator` -- a pix2pix U-Net: sketch (N, 1, 256, 256), 1 = ink, to the encoded
-  normal image (N, 3, 256, 256) in [0, 1] (``(n + 1) / 2``, background 0; :mod:`engine.camera`).
+* :class:`NormalGenerator` -- a pix2pix U-Net (by default with reflect padding and resize-conv
+  up-sampling instead of zero padding and transposed convolutions): sketch (N, 1, 256, 256),
+  1 = ink, to the encoded normal image (N, 3, 256, 256) in [0, 1] (``(n + 1) / 2``, background 0; :mod:`engine.camera`).
 * :class:`PatchDiscriminator` -- the 70x70 PatchGAN conditioned on the sketch.
 * :class:`MeshPredictor` -- the Neural Mesh Renderer / SoftRas encoder-decoder: normal image
   (N, 3, 64, 64) to a per-vertex local offset (N, V, 3) and a global offset (N, 3) of the
@@ -81,32 +82,66 @@ def generator_channels(base_channels: int, levels: int = GENERATOR_LEVELS) -> li
     return [base_channels * min(2**i, 8) for i in range(levels)]
 
 
+GENERATOR_ARCHS = ("resize", "pix2pix")
+"""``resize`` (the default): reflect-padded encoder convolutions and a nearest-upsample + 3x3 conv
+decoder, free of positional artefacts; ``pix2pix``: the original zero-padded encoder and
+transposed-convolution decoder (the bundled models' generator)."""
+
+
 class NormalGenerator(nn.Module):
     """pix2pix U-Net generator (Isola et al. 2017), 8 levels for 256x256 inputs.
 
     Encoder level i: Conv 4x4 stride 2 (+ InstanceNorm except at the first and innermost level),
-    LeakyReLU 0.2 before every conv but the first. Decoder level i: ReLU, ConvTranspose 4x4
-    stride 2, InstanceNorm (not at the outermost level), Dropout 0.5 at the three innermost decoder
+    LeakyReLU 0.2 before every conv but the first. Decoder level i: ReLU, an x2 up-sampling layer,
+    InstanceNorm (not at the outermost level), Dropout 0.5 at the three innermost decoder
     levels below the bottleneck; skip connections concatenate encoder and decoder features.
+
+    Architectures (``arch``):
+
+    * ``"pix2pix"``: the original layers, kept to reproduce the bundled models. Encoder convs
+      zero-pad; the decoder's up-sampling layer is ConvTranspose 4x4 stride 2. Both are positional:
+      zero padding makes the border pixels differ from the interior, and a stride-2 transposed
+      convolution gives even and odd output pixels different kernel taps (Odena et al. 2016,
+      "Deconvolution and checkerboard artifacts"). Even a blank sketch comes out with a
+      checkerboard and a dotted column near the border.
+    * ``"resize"`` (the default): encoder convs pad by reflection (``padding_mode="reflect"``: the
+      2x2 -> 1x1 level pads 1 < 2, which reflection allows); the decoder's up-sampling layer is a
+      nearest-neighbour x2 resize followed by a 3x3 stride-1 conv with reflect padding (Odena et
+      al.'s resize-convolution). Every layer then maps a spatially constant input to a spatially
+      constant output, so a constant sketch gives a spatially constant normal image, exactly in
+      float32 (``tests/test_training_networks.py`` checks it). Nearest rather than bilinear: a
+      bilinear resize of a constant map rounds differently at the border (``0.75 a + 0.25 a`` vs
+      ``a``), and the decoder's InstanceNorm amplifies that rounding on near-constant maps by up to
+      ``1 / sqrt(eps)`` per level (measured: a 2e-6 spread at 4x4 grows to about 1 at 256x256 on a
+      blank sketch). The innermost decoder level up-samples the 1x1 code to a 2x2 map that is
+      constant per channel: its conv is 1x1 (a 3x3 kernel on a constant map is a 1x1 kernel with
+      the taps summed) with a bias and no InstanceNorm (which would zero a constant map and drop
+      the bottleneck).
 
     Args:
         base_channels: channels of the first level (64 = the paper's width; 32, 16 for speed).
         levels: down-sampling levels; the input side must be divisible by ``2**levels``.
         dropout: decoder dropout probability (pix2pix: 0.5).
+        arch: ``"resize"`` or ``"pix2pix"`` (:data:`GENERATOR_ARCHS`).
     """
 
-    def __init__(self, base_channels: int = 64, levels: int = GENERATOR_LEVELS, dropout: float = 0.5) -> None:
+    def __init__(self, base_channels: int = 64, levels: int = GENERATOR_LEVELS, dropout: float = 0.5,
+                 arch: str = "resize") -> None:
         super().__init__()
         if base_channels < 1 or levels < 2:
             raise ValueError(f"need base_channels >= 1 and levels >= 2, got {base_channels}, {levels}")
+        if arch not in GENERATOR_ARCHS:
+            raise ValueError(f"generator arch must be one of {GENERATOR_ARCHS}, got {arch!r}")
         self.base_channels = int(base_channels)
         self.levels = int(levels)
+        self.arch = arch
+        pad_mode = "reflect" if arch == "resize" else "zeros"
         ch = generator_channels(base_channels, levels)
         self.down = nn.ModuleList()
         for i in range(levels):
             cin = 1 if i == 0 else ch[i - 1]
             layers: list[nn.Module] = [] if i == 0 else [nn.LeakyReLU(0.2)]
-            layers.append(nn.Conv2d(cin, ch[i], 4, 2, 1, bias=(i == 0 or i == levels - 1)))
+            layers.append(nn.Conv2d(cin, ch[i], 4, 2, 1, bias=(i == 0 or i == levels - 1), padding_mode=pad_mode))
             if 0 < i < levels - 1:
                 layers.append(nn.InstanceNorm2d(ch[i]))
             self.down.append(nn.Sequential(*layers))
@@ -116,11 +151,20 @@ class NormalGenerator(nn.Module):
             i = levels - 1 - j  # input is at level i
             cin = ch[i] if j == 0 else 2 * ch[i]
             cout = 3 if i == 0 else ch[i - 1]
-            layers = [nn.ReLU(), nn.ConvTranspose2d(cin, cout, 4, 2, 1, bias=(i == 0))]
-            if i > 0:
+            norm = i > 0
+            if arch == "pix2pix":
+                layers = [nn.ReLU(), nn.ConvTranspose2d(cin, cout, 4, 2, 1, bias=(i == 0))]
+            elif j == 0:  # the 1x1 code broadcast to 2x2: constant per channel, so a 1x1 conv and no norm
+                norm = False
+                layers = [nn.ReLU(), nn.Upsample(scale_factor=2, mode="nearest"),
+                          nn.Conv2d(cin, cout, 1, bias=True)]
+            else:
+                layers = [nn.ReLU(), nn.Upsample(scale_factor=2, mode="nearest"),
+                          nn.Conv2d(cin, cout, 3, 1, 1, bias=(i == 0), padding_mode="reflect")]
+            if norm:
                 layers.append(nn.InstanceNorm2d(cout))
-                if 1 <= j <= 3 and dropout > 0:
-                    layers.append(nn.Dropout(dropout))
+            if i > 0 and 1 <= j <= 3 and dropout > 0:
+                layers.append(nn.Dropout(dropout))
             self.up.append(nn.Sequential(*layers))
 
     def forward(self, sketch: torch.Tensor) -> torch.Tensor:
@@ -566,6 +610,7 @@ def view_frame_cameras(input_cameras: torch.Tensor, other_cameras: torch.Tensor 
 
 __all__ = [
     "CompactMeshPredictor",
+    "GENERATOR_ARCHS",
     "GENERATOR_LEVELS",
     "MeshPredictor",
     "PREDICTOR_ARCHS",
