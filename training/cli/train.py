@@ -78,7 +78,7 @@ def _is_main_rank() -> bool:
 
 
 INIT_FIELDS = {
-    "generator": ("base_channels",),
+    "generator": ("base_channels", "generator_arch"),
     "predictor": ("predictor_arch", "template_level", "predictor_channels", "predictor_hidden", "predictor_latent",
                   "predictor_modes"),
 }
@@ -207,7 +207,43 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+_RUN_ONLY_EVAL_FLAGS = (("gt_normals", "--gt-normals"), ("generator_run", "--generator-run"),
+                        ("baseline_run", "--baseline-run"))
+_MODELS_ONLY_EVAL_FLAGS = (("views", "--views"), ("retrieval_data", "--retrieval-data"))
+
+
+def _eval_models_specs(args: argparse.Namespace) -> list[str]:
+    """The model folders ``eval`` scores (``--models`` after ``eval``, or the top-level one); [] for RUN mode.
+
+    Exactly one of RUN and ``--models`` is required, and each mode's own flags are refused in the other.
+    """
+    specs = list(getattr(args, "eval_models", None) or [])
+    if not specs and getattr(args, "models", None):  # `sketchmesh --models DIR eval ...`
+        specs = [args.models]
+    if args.run and specs:
+        raise ConfigError("give a RUN folder or --models DIR, not both")
+    if not args.run and not specs:
+        raise ConfigError("give a RUN folder (a training run) or --models DIR (exported ONNX models; "
+                          "'bundled' for the app's) to evaluate")
+    if specs:
+        used = [flag for key, flag in _RUN_ONLY_EVAL_FLAGS if getattr(args, key, None)]
+        if used:
+            raise ConfigError(f"{used[0]} applies to a RUN, not to --models")
+    else:
+        used = [flag for key, flag in _MODELS_ONLY_EVAL_FLAGS if getattr(args, key, None) is not None]
+        if used:
+            raise ConfigError(f"{used[0]} applies to --models, not to a RUN")
+        if args.split == "all":
+            raise ConfigError("--split all applies to --models; a RUN is scored on train, val or test")
+    return specs
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
+    specs = _eval_models_specs(args)
+    if specs:
+        from training.evaluation.models_eval import evaluate_models_cli
+
+        return evaluate_models_cli(args, specs)
     from training._torch import require_torch
 
     torch = require_torch()
@@ -267,13 +303,26 @@ def register(commands, bench) -> None:
     one_line_errors(p)
 
     p = commands.add_parser(
-        "eval", help="evaluate a run on the test split (voxel IoU, Chamfer-L1, normal consistency, silhouette IoU)",
+        "eval", help="evaluate a run on the test split (voxel IoU, Chamfer-L1, normal consistency, silhouette IoU), "
+        "or exported ONNX models (--models) on any dataset, e.g. your own meshes",
+        description="`sketchmesh eval RUN --data DIR` scores a training run's torch networks. "
+        "`sketchmesh eval --models DIR --data DIR [--split all]` scores folders of exported ONNX models through the "
+        "app's engine on any dataset (e.g. built with `sketchmesh data --source meshes:PATH`): per-mesh voxel IoU "
+        "from each mesh's line drawings, beside retrieval and the template sphere as floors.",
     )
-    p.add_argument("run", metavar="RUN")
+    p.add_argument("run", metavar="RUN", nargs="?", help="training run folder (or give --models instead)")
+    p.add_argument("--models", dest="eval_models", metavar="DIR", action="append", default=None,
+                   help="instead of RUN: a folder of exported ONNX models ('bundled': the app's); repeat to compare")
     p.add_argument("--data", required=True, metavar="DIR")
-    p.add_argument("--split", default="test", choices=("train", "val", "test"))
+    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"),
+                   help="default test; all (--models only): every shape, e.g. of a folder of your own meshes")
+    p.add_argument("--views", type=int_in(0, 10**6), default=None, metavar="N",
+                   help="--models: line drawings per mesh, evenly spaced over its views (default 4; 0: all)")
+    p.add_argument("--retrieval-data", metavar="DIR",
+                   help="--models: dataset whose train split the retrieval floor searches (default --data)")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON here")
-    p.add_argument("--out", metavar="DIR", help="folder for the markdown table and figure (default RUN/eval)")
+    p.add_argument("--out", metavar="DIR",
+                   help="folder for the markdown table, JSON and figure (default RUN/eval, or DATA/eval with --models)")
     p.add_argument("--augment-strength", type=unit_float, default=0.0, help="sketch augmentation of the test sketches")
     p.add_argument("--gt-normals", action="store_true",
                    help="feed the predictor the ground-truth normal images instead of the generator's")
@@ -281,9 +330,11 @@ def register(commands, bench) -> None:
     p.add_argument("--baseline-run", metavar="RUN", action="append", default=[],
                    help="also evaluate this run (e.g. the silhouette-only lambda_n = 0 run); repeatable")
     p.add_argument("--no-retrieval", action="store_true", help="skip the nearest-training-sample retrieval baseline")
-    p.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="evaluate at most this many test samples (0: all)")
+    p.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
+                   help="evaluate at most this many test samples (with --models: meshes), evenly spaced (0: all)")
     p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)
-    p.add_argument("--threads", type=_threads, default=0)
+    p.add_argument("--threads", type=_threads, default=0,
+                   help="torch threads (with --models: ONNX Runtime threads) (0: the default)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_eval)
     one_line_errors(p)

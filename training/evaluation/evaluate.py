@@ -43,6 +43,7 @@ import torch
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes
 from engine.mesh import Mesh
+from training.evaluation.metrics import world_vertices
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
 
@@ -57,12 +58,6 @@ RETRIEVAL_CHUNK = 256
 
 class EvaluationError(SketchmeshError):
     """Evaluation cannot run (empty split, run without the needed networks)."""
-
-
-def world_vertices(view_vertices: np.ndarray, camera: np.ndarray) -> np.ndarray:
-    """View-frame (V, 3) vertices -> world: ``p_world = R_in.T @ p_view`` with R_in from the (16,) camera."""
-    r = np.asarray(camera, dtype=np.float64)[:9].reshape(3, 3)
-    return np.asarray(view_vertices, dtype=np.float64) @ r
 
 
 class _Method:

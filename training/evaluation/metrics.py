@@ -4,6 +4,7 @@
 * :func:`chamfer_l1`, :func:`normal_consistency`, :func:`surface_metrics` -- surface-sampling
   metrics as defined by Occupancy Networks (Mescheder et al., CVPR 2019).
 * :func:`silhouette_iou` -- IoU of two boolean images.
+* :func:`world_vertices` -- a prediction's view-frame vertices back in the world frame.
 
 Inputs are :class:`engine.mesh.Mesh` in the frame of :mod:`engine.camera`: a normalised shape
 lies in [-0.5, 0.5]^3. The metrics do not renormalise: both meshes must already be in the same
@@ -231,6 +232,16 @@ def chamfer_l1(mesh_a: Mesh, mesh_b: Mesh, n_points: int = DEFAULT_SURFACE_POINT
 def normal_consistency(mesh_a: Mesh, mesh_b: Mesh, n_points: int = DEFAULT_SURFACE_POINTS, seed: int = 0) -> float:
     """Normal consistency (Occupancy Networks): see :func:`surface_metrics`. 1 is best."""
     return surface_metrics(mesh_a, mesh_b, n_points, seed)["normal_consistency"]
+
+
+def world_vertices(view_vertices: np.ndarray, camera: np.ndarray) -> np.ndarray:
+    """View-frame (V, 3) vertices -> world: ``p_world = R_in.T @ p_view`` with R_in from the (16,) camera.
+
+    The mesh predictor's output is in the input view's frame (``p_view = R_in @ p_world``, not
+    translated; :mod:`engine.camera`), so this puts a prediction beside its ground truth.
+    """
+    r = np.asarray(camera, dtype=np.float64)[:9].reshape(3, 3)
+    return np.asarray(view_vertices, dtype=np.float64) @ r
 
 
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:

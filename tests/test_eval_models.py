@@ -1,0 +1,192 @@
+"""`sketchmesh eval --models DIR --data DATA`: exported ONNX models scored on a folder of the user's own meshes."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch")  # `sketchmesh data` renders with the training layer
+
+from onnx_fixtures import write_corrupt_model, write_fixture_models  # noqa: E402
+
+from engine.icosphere import icosphere  # noqa: E402
+from engine.mesh import Mesh  # noqa: E402
+from engine.pipeline import SketchEngine  # noqa: E402
+from sketchmesh.cli import main  # noqa: E402
+from training.evaluation.metrics import voxel_iou  # noqa: E402
+from training.evaluation.models_eval import pick_views  # noqa: E402
+
+MESHES = ("ball", "brick", "rod")
+BRICK = (1.0, 0.5, 0.3)
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    """Three simple meshes as OBJ files, rendered by `sketchmesh data --source meshes:DIR` (4 views), and a tiny model folder."""
+    import trimesh
+
+    root = tmp_path_factory.mktemp("evalmodels")
+    folder = root / "meshes" / "parts"
+    folder.mkdir(parents=True)
+    trimesh.creation.icosphere(subdivisions=2, radius=0.5).export(folder / "ball.obj")
+    trimesh.creation.box(extents=BRICK).export(folder / "brick.obj")
+    trimesh.creation.cylinder(radius=0.2, height=1.0, sections=16).export(folder / "rod.obj")
+    data = root / "data"
+    assert main(["data", "--source", f"meshes:{root / 'meshes'}", "--out", str(data), "--views", "4",
+                 "--small-size", "32", "--no-progress"]) == 0
+    small = root / "small"  # the same meshes at 64x64: not the models' input, but fine to retrieve from
+    assert main(["data", "--source", f"meshes:{root / 'meshes'}", "--out", str(small), "--views", "4", "--size", "64",
+                 "--small-size", "16", "--no-progress"]) == 0
+    return {"root": root, "data": data, "small": small, "tiny": write_fixture_models(root / "tiny")}
+
+
+@pytest.fixture(scope="module")
+def result(world):
+    out = world["root"] / "report"
+    rc = main(["eval", "--models", "bundled", "--models", str(world["tiny"]), "--data", str(world["data"]),
+               "--split", "all", "--threads", "1", "--quiet", "--out", str(out), "--json", str(world["root"] / "r.json")])
+    assert rc == 0
+    return json.loads((world["root"] / "r.json").read_text()), out
+
+
+def _shape_file(world, name):
+    return np.load(world["data"] / "shapes" / "parts" / f"{name}.npz")
+
+
+def test_pick_views_spreads_them_evenly():
+    assert pick_views(24, 4) == [3, 9, 15, 21]
+    assert pick_views(4, 4) == [0, 1, 2, 3] == pick_views(4, 0) == pick_views(4, 9)
+    assert pick_views(24, 1) == [12]
+
+
+def test_one_row_per_mesh_with_ious_in_range(result, world):
+    res, out = result
+    assert res["columns"] == ["bundled", "tiny", "retrieval", "template"]
+    assert sorted(r["shape_id"] for r in res["rows"]) == sorted(MESHES)
+    assert res["meshes"] == 3 and res["split"] == "all" and res["notes"] == []
+    for r in res["rows"]:
+        assert r["category"] == "parts" and r["views"] == [0, 1, 2, 3] and len(r["per_view"]) == 4
+        for c in res["columns"]:
+            assert 0.0 <= r["iou"][c] <= 1.0
+        for v in r["per_view"]:
+            assert not v["retrieved"].startswith(f"parts/{r['shape_id']} ")  # leave-one-out
+    # means are the means of the rows
+    for c in res["columns"]:
+        assert res["mean"][c] == pytest.approx(np.mean([r["iou"][c] for r in res["rows"]]), abs=1e-12)
+        assert res["counted"][c] == 3
+    # JSON round trip: the --json file and OUT's copy hold the same record; the markdown has a row per mesh
+    assert json.loads((out / "eval_models_all.json").read_text()) == res
+    md = (out / "eval_models_all.md").read_text()
+    for r in res["rows"]:
+        assert f"| {r['shape_id']} | parts | {r['iou']['bundled']:.3f} | {r['iou']['tiny']:.3f} |" in md
+    assert f"**{res['mean']['template']:.3f}**" in md
+
+
+def test_template_floor_is_the_voxel_iou_of_the_template_sphere(result, world):
+    res, _ = result
+    rows = {r["shape_id"]: r for r in res["rows"]}
+    assert res["template"] == {"level": 3, "radius": 0.5, "vertices": 642}
+    sphere = icosphere(3, 0.5)
+    for name in MESHES:
+        with _shape_file(world, name) as z:
+            gt = Mesh(z["vertices"], z["faces"])
+        assert rows[name]["iou"]["template"] == pytest.approx(voxel_iou(sphere, gt, 32), abs=1e-12)
+    # and that is about the true overlap of the sphere and the (already normalised) 1 x 0.5 x 0.3 brick
+    g = (np.arange(160) + 0.5) / 160 - 0.5
+    x, y, z = np.meshgrid(g, g, g, indexing="ij")
+    ball = x**2 + y**2 + z**2 <= 0.25
+    brick = (np.abs(x) <= BRICK[0] / 2) & (np.abs(y) <= BRICK[1] / 2) & (np.abs(z) <= BRICK[2] / 2)
+    assert rows["brick"]["iou"]["template"] == pytest.approx((ball & brick).sum() / (ball | brick).sum(), abs=0.03)
+    assert rows["ball"]["iou"]["template"] > 0.9
+
+
+def test_a_model_iou_is_the_engines_mesh_rotated_back_to_the_world(result, world):
+    """Redo one view by hand: the stored line drawing through the engine, p_world = R^T p_view, voxel IoU."""
+    res, _ = result
+    row = next(r for r in res["rows"] if r["shape_id"] == "brick")
+    view = row["per_view"][1]
+    with _shape_file(world, "brick") as z:
+        sketch = z["sketch"][view["view"]].astype(np.float32) / 255.0
+        rot = z["cameras"][view["view"]][:9].reshape(3, 3)
+        gt = Mesh(z["vertices"], z["faces"])
+        assert view["azimuth"] == z["azimuths"][view["view"]]
+    for label, folder in (("bundled", None), ("tiny", world["tiny"])):
+        pred = SketchEngine(folder, threads=1, cache_size=0).predict(sketch).mesh
+        world_verts = (rot.T @ np.asarray(pred.vertices, np.float64).T).T
+        assert view["iou"][label] == pytest.approx(voxel_iou(Mesh(world_verts, pred.faces), gt, 32), abs=1e-12)
+        assert row["iou"][label] == pytest.approx(np.mean([v["iou"][label] for v in row["per_view"]]), abs=1e-12)
+
+
+def test_no_train_split_skips_retrieval_with_a_note(world, capsys):
+    data = world["root"] / "all_test"
+    shutil.copytree(world["data"], data)
+    manifest = json.loads((data / "manifest.json").read_text())
+    for rec in manifest["shapes"] + manifest["views"]:
+        rec["split"] = "test"
+    (data / "manifest.json").write_text(json.dumps(manifest))
+    capsys.readouterr()
+    rc = main(["eval", "--models", "bundled", "--data", str(data), "--views", "1", "--max-samples", "2",
+               "--threads", "1", "--quiet", "--out", str(world["root"] / "r2")])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    res = json.loads((world["root"] / "r2" / "eval_models_test.json").read_text())
+    assert res["columns"] == ["bundled", "template"] and res["meshes"] == 2
+    assert all(len(r["per_view"]) == 1 for r in res["rows"])
+    assert len(res["notes"]) == 1 and "retrieval skipped" in res["notes"][0]
+    assert "note: retrieval skipped" in printed
+
+
+def test_retrieval_from_another_dataset(world):
+    out = world["root"] / "r3"
+    assert main(["eval", "--models", str(world["tiny"]), "--data", str(world["data"]), "--split", "all", "--views", "2",
+                 "--retrieval-data", str(world["small"]), "--threads", "1", "--quiet", "--out", str(out)]) == 0
+    res = json.loads((out / "eval_models_all.json").read_text())
+    assert res["columns"] == ["tiny", "retrieval", "template"]
+    assert res["retrieval_data"] == str(world["small"]) and res["retrieval_views"] == 12
+    for r in res["rows"]:
+        assert r["views"] == [1, 3] and 0.0 <= r["iou"]["retrieval"] <= 1.0
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (lambda w: ["--models", w["root"] / "nope", "--data", w["data"], "--split", "all"], "nope does not exist"),
+    (lambda w: ["--models", w["root"] / "meshes", "--data", w["data"], "--split", "all"], "no generator.onnx"),
+    (lambda w: ["--models", w["corrupt"], "--data", w["data"], "--split", "all"], "cannot load model"),
+    (lambda w: ["--models", "bundled", "--data", w["root"] / "empty"], "not a dataset folder"),
+    (lambda w: ["--models", "bundled", "--data", w["root"] / "absent"], "does not exist"),
+    (lambda w: ["--models", "bundled", "--data", w["data"]], "the test split has no shapes (it has 3 train)"),
+    (lambda w: ["--models", "bundled", "--data", w["small"], "--split", "all"], "holds 64x64 line drawings"),
+    (lambda w: ["--models", "bundled", "--data", w["data"], "--split", "all", "--retrieval-data", w["root"] / "empty"],
+     "--retrieval-data"),
+    (lambda w: ["--models", "bundled", "--models", "bundled", "--data", w["data"]], "given twice"),
+    (lambda w: [w["root"], "--models", "bundled", "--data", w["data"]], "not both"),
+    (lambda w: ["--data", w["data"]], "give a RUN folder"),
+    (lambda w: ["--models", "bundled", "--data", w["data"], "--gt-normals"], "--gt-normals applies to a RUN"),
+    (lambda w: [w["root"], "--data", w["data"], "--views", "2"], "--views applies to --models"),
+    (lambda w: [w["root"], "--data", w["data"], "--split", "all"], "--split all applies to --models"),
+], ids=["no models folder", "folder without models", "corrupt model", "empty data dir", "missing data dir",
+        "split with no shapes", "64x64 dataset", "empty retrieval data", "same folder twice", "RUN and --models", "neither",
+        "run flag with --models", "--views with RUN", "--split all with RUN"])
+def test_bad_input_is_one_line_and_non_zero(world, argv, needle, capsys):
+    (world["root"] / "empty").mkdir(exist_ok=True)
+    corrupt = world["root"] / "corrupt"
+    if not corrupt.exists():
+        shutil.copytree(world["tiny"], corrupt)
+        write_corrupt_model(corrupt / "generator.onnx")
+    w = {**world, "corrupt": corrupt}
+    capsys.readouterr()
+    rc = main(["eval", *[str(a) for a in argv(w)], "--quiet", "--threads", "1"])
+    err = capsys.readouterr().err.strip()
+    assert rc != 0
+    assert needle in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert not (world["data"] / "eval").exists()
+
+
+def test_bad_split_value_is_refused_by_the_parser(world, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", "--models", "bundled", "--data", str(world["data"]), "--split", "bogus"])
+    assert exc.value.code != 0
+    err = capsys.readouterr().err.strip()
+    assert "invalid choice: 'bogus'" in err and len(err.splitlines()) == 1
