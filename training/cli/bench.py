@@ -39,6 +39,7 @@ _cmd_bench_variants = _lazy("training.bench.variants", "main_variants")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_bench_refine = _lazy("training.evaluation.refine_bench", "main_refine_bench")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
+_cmd_bench_variety = _lazy("training.evaluation.variety", "main_variety")
 
 
 def _key_value(text: str) -> tuple[str, object]:
@@ -167,6 +168,19 @@ def register(commands, bench) -> None:
     v.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     v.add_argument("--quiet", action="store_true")
     v.set_defaults(func=_cmd_bench_variants)
+
+    w = one_line_errors(bench.add_parser(
+        "variety", help="how varied the procedural shapes are: held-out shapes' nearest-train voxel IoU",
+        description="For the first N procedural shapes of each category, the mean best voxel IoU of every "
+        "val/test shape against the category's train shapes: the bound on nearest-neighbour retrieval "
+        "(lower means a test split that measures generalisation).",
+    ))
+    w.add_argument("--shapes-per-category", type=int_in(2, 100_000), default=100)
+    w.add_argument("--categories", nargs="+", metavar="NAME", help="default: all 13")
+    w.add_argument("--voxel-resolution", type=int_in(4, 256), default=32)
+    w.add_argument("--json", metavar="PATH", help="also write the table as JSON here")
+    w.add_argument("--quiet", action="store_true")
+    w.set_defaults(func=_cmd_bench_variety)
 
     p = one_line_errors(bench.add_parser(
         "refine", help="refinement to the sketch's outline: silhouette IoU, voxel IoU and latency for N steps",

@@ -158,6 +158,9 @@ class BuildSettings:
         d["elevations"] = [float(e) for e in self.elevations]
         d["conventions"] = CONVENTIONS_ID
         d["format"] = FORMAT_ID
+        from training.data.shapes import LIBRARY_VERSION  # light: manifold3d loads on first use
+
+        d["shape_library"] = LIBRARY_VERSION  # procedural shapes of an older library are redone
         return json.dumps(d, sort_keys=True)
 
 

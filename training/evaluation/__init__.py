@@ -7,6 +7,7 @@ Modules:
                 meshes), per-mesh voxel IoU beside the retrieval and template-sphere floors
     tradeoff -- ``sketchmesh bench tradeoff``: accuracy against latency of exported ONNX variants
     gallery  -- ``sketchmesh gallery``: a picture of sketches, normals and meshes
+    variety  -- how varied a shape library is: held-out shapes' nearest-train voxel IoU (nearest_train_iou)
 
 Import the submodules directly; importing this package loads nothing heavy.
 """
