@@ -100,7 +100,7 @@ step() {
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
-      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 ;;
+      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 --set lr_schedule=cosine --set iters=4700 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
       sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --variant default --variant k1:extra_views=1 --variant k7:extra_views=7 \
