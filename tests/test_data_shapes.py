@@ -123,8 +123,8 @@ def test_held_out_shapes_have_no_near_copy_among_the_train_shapes():
 
     20 shapes per category; the library before the variety rework scored 0.73 here (0.83 with 100 per category).
     """
-    from training.evaluation.variety import _iou, nearest_train_iou, shape_voxels
     from training.evaluation.metrics import voxel_iou
+    from training.evaluation.variety import _iou, nearest_train_iou, shape_voxels
 
     a, b = shapes.make_shape("sofa", 0), shapes.make_shape("sofa", 1)
     assert _iou(shape_voxels(a), shape_voxels(b)) == pytest.approx(voxel_iou(a, b))  # same measure as evaluation

@@ -190,3 +190,29 @@ def test_bad_split_value_is_refused_by_the_parser(world, capsys):
     assert exc.value.code != 0
     err = capsys.readouterr().err.strip()
     assert "invalid choice: 'bogus'" in err and len(err.splitlines()) == 1
+
+
+def test_elevation_keeps_only_the_views_at_that_elevation(world, capsys):
+    """--elevation 0 scores the side views only (the dataset has 0 and 30 degrees); an elevation the
+    data lacks is one clear line; the dataset's per-item elevations are the manifest's."""
+    from training.data.dataset import ShapeViewDataset
+
+    data = world["root"] / "two_elevations"
+    assert main(["data", "--source", f"meshes:{world['root'] / 'meshes'}", "--out", str(data), "--views", "2",
+                 "--elevations", "0", "30", "--small-size", "32", "--no-progress"]) == 0
+    ds = ShapeViewDataset(data, "all", extra_views=0, augment_strength=0.0)
+    by_view = {(r["shape_id"], r["view"]): r["elevation"] for r in ds.manifest["views"]}
+    assert sorted(set(ds.elevations().tolist())) == [0.0, 30.0]
+    assert [by_view[(ds.shapes()[si][1], v)] for si, v in ds._items] == ds.elevations().tolist()
+    out = world["root"] / "side"
+    assert main(["eval", "--models", str(world["tiny"]), "--data", str(data), "--split", "all", "--views", "0",
+                 "--elevation", "0", "--no-retrieval", "--threads", "1", "--quiet", "--out", str(out)]) == 0
+    res = json.loads((out / "eval_models_all.json").read_text())
+    assert len(res["rows"]) == 3
+    for r in res["rows"]:
+        assert [pv["elevation"] for pv in r["per_view"]] == [0.0, 0.0]
+    capsys.readouterr()
+    assert main(["eval", "--models", str(world["tiny"]), "--data", str(data), "--split", "all", "--elevation", "45",
+                 "--quiet", "--threads", "1", "--out", str(world["root"] / "none")]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "elevation 45" in err and len(err.splitlines()) == 1

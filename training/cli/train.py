@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from engine.cliutil import check_output_dir, int_in, one_line_errors, run_guarded, unit_float
+from engine.cliutil import check_output_dir, float_in, int_in, one_line_errors, run_guarded, unit_float
 from engine.errors import SketchmeshError
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
@@ -333,6 +333,8 @@ def register(commands, bench) -> None:
     p.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
                    help="evaluate at most this many test samples (with --models: meshes), evenly spaced (0: all)")
     p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)
+    p.add_argument("--elevation", type=float_in(-90.0, 90.0), default=None, metavar="DEG",
+                   help="only the views rendered at this elevation (e.g. 0 for side and front views)")
     p.add_argument("--threads", type=_threads, default=0,
                    help="torch threads (with --models: ONNX Runtime threads) (0: the default)")
     p.add_argument("--quiet", action="store_true")

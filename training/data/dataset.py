@@ -678,6 +678,15 @@ class ShapeViewDataset(_DatasetBase):
     def __len__(self) -> int:
         return len(self._items)
 
+    def elevations(self) -> np.ndarray:
+        """(len(self),) the elevation in degrees of every item's view, from the manifest."""
+        if getattr(self, "_elevations", None) is None:
+            by_view = {(r["category"], r["shape_id"], int(r["view"])): float(r["elevation"])
+                       for r in self.manifest["views"]}
+            self._elevations = np.array([by_view[(self._shapes[si]["category"], self._shapes[si]["shape_id"], v)]
+                                         for si, v in self._items], dtype=np.float64)
+        return self._elevations
+
     def shapes(self) -> list[tuple[str, str, str]]:
         """(category, shape_id, split) of every shape in this dataset view."""
         return [(s["category"], s["shape_id"], s["split"]) for s in self._shapes]

@@ -43,7 +43,7 @@ import torch
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes
 from engine.mesh import Mesh
-from training.evaluation.metrics import world_vertices
+from training.evaluation.metrics import ELEVATION_TOL, world_vertices
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
 
@@ -196,6 +196,7 @@ def evaluate(
     progress: bool = True,
     test_set=None,
     train_set=None,
+    elevation: float | None = None,
 ) -> dict:
     """Evaluate a run (and baselines) on a split; see the module docstring.
 
@@ -212,6 +213,7 @@ def evaluate(
         augment_strength: sketch augmentation of the evaluated sketches.
         voxel_resolution: voxel grid side for the IoU.
         test_set, train_set: datasets to use instead of reading ``data_dir`` (tests).
+        elevation: only the samples rendered at this elevation in degrees (None: all).
 
     Returns:
         ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
@@ -256,8 +258,13 @@ def evaluate(
         methods.append(_RetrievalMethod(train_set, methods[0], progress))
 
     indices = np.arange(len(test_set))
+    if elevation is not None:
+        indices = indices[np.abs(test_set.elevations() - float(elevation)) < ELEVATION_TOL]
+        if indices.size == 0:
+            have = sorted({round(float(e), 3) for e in test_set.elevations()})
+            raise EvaluationError(f"the {split} split has no view at elevation {elevation:g}; it has {have}")
     if max_samples and max_samples < len(indices):
-        indices = np.unique(np.linspace(0, len(test_set) - 1, max_samples).round().astype(int))
+        indices = indices[np.unique(np.linspace(0, len(indices) - 1, max_samples).round().astype(int))]
     faces = pred.template_faces.cpu().numpy().copy()
     gt_cache: dict[tuple[str, str], tuple[Mesh, np.ndarray]] = {}
     train_mesh_cache: dict[tuple[str, str], Mesh] = {}
@@ -417,6 +424,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         args.run, args.data, args.split, gt_normals=args.gt_normals, generator_run=args.generator_run,
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
+        elevation=args.elevation,
     )
     table = markdown_table(result)
     print(table)

@@ -57,6 +57,9 @@ SILHOUETTE_THRESHOLD = 0.5
 MAX_VOXEL_RESOLUTION = 512
 
 
+ELEVATION_TOL = 1e-3
+"""Degrees within which a view's elevation matches ``sketchmesh eval --elevation``."""
+
 def _check_mesh(mesh: Mesh, what: str) -> None:
     if not isinstance(mesh, Mesh):
         raise TypeError(f"{what} expects an engine.mesh.Mesh, got {type(mesh).__name__}")

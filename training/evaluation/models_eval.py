@@ -258,6 +258,7 @@ def evaluate_models(
     threads: int | None = None,
     progress: bool = True,
     engines: list | None = None,
+    elevation: float | None = None,
 ) -> dict:
     """Score model folders on a dataset's split with the template and retrieval floors (module docstring).
 
@@ -274,6 +275,7 @@ def evaluate_models(
         voxel_resolution: voxel grid side.
         threads: ONNX Runtime threads per engine (None: the engine's default).
         engines: loaded engines to use instead of opening ``models`` (tests).
+        elevation: only views at this elevation in degrees (None: all); shapes without one are left out.
 
     Returns:
         JSON-ready dict: ``columns`` (model labels, then "retrieval" if it ran, then "template"),
@@ -289,7 +291,7 @@ def evaluate_models(
 
     from engine.icosphere import icosphere
     from training.data.dataset import ShapeViewDataset
-    from training.evaluation.metrics import solid_voxels, world_vertices
+    from training.evaluation.metrics import ELEVATION_TOL, solid_voxels, world_vertices
 
     t_start = time.perf_counter()
     if not 1 <= voxel_resolution <= 512:
@@ -337,7 +339,12 @@ def evaluate_models(
         azimuths = dataset.shape_array(cat, sid, "azimuths")
         elevations = dataset.shape_array(cat, sid, "elevations")
         per_view = []
-        for v in pick_views(len(cams), views):
+        candidates = list(range(len(cams)))
+        if elevation is not None:
+            candidates = [v for v in candidates if abs(float(elevations[v]) - float(elevation)) < ELEVATION_TOL]
+            if not candidates:
+                continue
+        for v in [candidates[k] for k in pick_views(len(candidates), views)]:
             sketch = _view_sketch(dataset, cat, sid, v, augment_strength, seed)
             iou: dict = {}
             rec: dict = {"view": int(v), "azimuth": float(azimuths[v]), "elevation": float(elevations[v]), "iou": iou}
@@ -365,6 +372,8 @@ def evaluate_models(
             "per_view": per_view,
         })
     bar.close()
+    if elevation is not None and not rows:
+        raise SketchmeshError(f"no view of the {split} split of {data_dir} is at elevation {elevation:g} degrees")
     if skipped_views:
         notes.append(f"{skipped_views} view(s) with a blank line drawing were skipped")
     if searcher is not None and any(r["iou"][RETRIEVAL] is None for r in rows):
@@ -447,7 +456,7 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     result = evaluate_models(folders, args.data, args.split, views=views, retrieval=not args.no_retrieval,
                              retrieval_data=args.retrieval_data, max_samples=args.max_samples,
                              augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution,
-                             threads=threads, progress=not args.quiet, engines=engines)
+                             threads=threads, progress=not args.quiet, engines=engines, elevation=args.elevation)
     table = markdown_report(result)
     print(table)
     stem = f"eval_models_{args.split}"
