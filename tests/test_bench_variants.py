@@ -33,6 +33,14 @@ def test_parse_variant():
             parse_variant(bad)
 
 
+def test_labels_mark_the_diagnostic_and_the_reference():
+    from training.bench.variants import label
+
+    assert label("d", {"supervision": "3d"}) == "d (3D-supervised diagnostic)"
+    assert label("s", {"silhouette": "soft"}) == "s (SoftRas silhouette, reference)"
+    assert label("far", {"edge_range": 8, "silhouette": "eq1", "supervision": "2d"}) == "far"
+
+
 def test_bench_variants_end_to_end_resumes_and_plots(data, tmp_path, capsys):
     from sketchmesh.cli import main
 

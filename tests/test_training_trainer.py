@@ -368,7 +368,7 @@ def test_bad_input_gives_one_line_errors(data_dir, tmp_path, capsys):
 def test_lr_warmup_ramps_linearly_and_a_compact_run_resumes_bit_identically(data_dir, tmp_path):
     """Warm-up: step it runs at min(1, (it + 1) / lr_warmup) of the base rate (hand-computed), the
     rate the optimizer really used; the compact predictor resumes mid-warm-up exactly."""
-    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), iters=3, lr_warmup=4, lr_mesh=2e-3,
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), iters=3, lr_warmup=4, lr_mesh=2e-3, lr_schedule="constant",
                       **(TINY | {"predictor_arch": "compact", "predictor_modes": 20}))
     straight = Trainer(cfg.replace(out_dir=str(tmp_path / "a")), progress=False)
     seen = []

@@ -100,15 +100,26 @@ step() {
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
-      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 --set lr_schedule=cosine --set iters=4700 ;;
+      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 --iters 4700 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
+      # (measured before the cosine decay became the default: these runs keep the constant rate)
       sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+        --set lr_schedule=constant \
         --variant default --variant k1:extra_views=1 --variant k7:extra_views=7 \
         --variant "softras-paper:predictor_arch=softras,lr_mesh=1e-4,lr_warmup=0,extra_views=1,predictor_local_bound=tanh" \
         --variant 3d-diagnostic:supervision=3d
       # the default alone, continued to 20 minutes (same 2-minute chunks)
       sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
-        --variant default ;;
+        --set lr_schedule=constant --variant default
+      # the silhouette-gradient variants (constant rate, like the default they are compared with) and
+      # the cosine decay over what 8 minutes hold
+      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+        --set lr_schedule=constant --variant far8:edge_range=8 --variant soft:silhouette=soft
+      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+        --variant cosine:lr_schedule=cosine,iters=1780
+      # the cosine default over two hours (resumable: a later call continues the finished chunks)
+      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
+        --variant cosine120:lr_schedule=cosine,iters=30000 ;;
     all)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)

@@ -14,6 +14,10 @@ Both are scored the same way, on the shapes' own dataset views (24 azimuths at 3
   input views per shape (view frame, rotated back to the world) and each is scored on all views.
 * **voxel IoU** (32^3) against the shape's mesh, and the time each took.
 
+The predictor's learning rate decays along half a cosine over ``--iters`` iterations (the
+default 4,700 is what 20 minutes hold on the 2-core reference machine; a faster machine ends
+sooner, a slower one stops at ``--minutes`` before the rate has decayed).
+
 Steps (each resumes): build ``OUT/data`` (``--shapes`` procedural train-split shapes, one per
 category in turn) unless ``--data`` names a dataset, train ``OUT/run`` for ``--minutes``, fit
 every shape directly (cached per dataset), write ``OUT/overfit.json`` and ``OUT/overfit.png`` (each
@@ -201,7 +205,7 @@ def main_overfit(args) -> int:
     dataset = ShapeViewDataset(data_dir, "train", extra_views=0, augment_strength=0.0, shape_ids=shape_ids)
 
     overrides = dict(args.set or [])
-    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(out / "run"), iters=10**7,
+    cfg = TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(out / "run"), iters=args.iters,
                       max_minutes=float(args.minutes), batch=args.batch, augment_strength=0.0, val_every=0,
                       ckpt_every=200, plot_every=200, categories=tuple(categories), seed=args.seed)
     if overrides:

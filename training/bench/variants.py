@@ -55,8 +55,15 @@ def is_diagnostic(cfg_dict: dict) -> bool:
     return cfg_dict.get("supervision", "2d") == "3d"
 
 
+def is_reference(cfg_dict: dict) -> bool:
+    """True for a run with SoftRas's soft silhouette: an outside reference, not the paper's Eq. 1."""
+    return cfg_dict.get("silhouette", "eq1") == "soft"
+
+
 def label(name: str, cfg_dict: dict) -> str:
-    return f"{name} (3D-supervised diagnostic)" if is_diagnostic(cfg_dict) else name
+    if is_diagnostic(cfg_dict):
+        return f"{name} (3D-supervised diagnostic)"
+    return f"{name} (SoftRas silhouette, reference)" if is_reference(cfg_dict) else name
 
 
 def _load(out: Path) -> dict:
@@ -97,7 +104,7 @@ def plot_png(record: dict) -> bytes:
     for name in names:
         pts = [p for p in record["points"] if p["variant"] == name]
         t = [0.0] + [p["train_minutes"] for p in pts]
-        style = "--" if is_diagnostic(pts[0]["config"]) else "-"
+        style = "--" if is_diagnostic(pts[0]["config"]) else ":" if is_reference(pts[0]["config"]) else "-"
         for ax, key in zip(axes, ("voxel_iou", "silhouette_iou")):
             start = record.get("template", {}).get(key, np.nan)
             ax.plot(t, [start] + [p[key] for p in pts], style, marker="o", ms=3, label=label(name, pts[0]["config"]))
@@ -178,7 +185,8 @@ def main_variants(args) -> int:
                           "max_samples": args.max_samples, "threads": args.threads}  # the latest call's
     for name, cfg in configs.items():
         done = [p for p in record["points"] if p["variant"] == name]
-        if done and done[0]["config"] != cfg.to_dict():
+        # a record from before a config field existed was run with its legacy value (LEGACY_DEFAULTS)
+        if done and TrainConfig.from_dict(done[0]["config"]).to_dict() != cfg.to_dict():
             raise SketchmeshError(f"variant {name} was run with another config before; use a new name or --out")
         trained_s = done[-1]["train_minutes"] * 60.0 if done else 0.0
         for k in range(len(done), int(args.points)):

@@ -109,7 +109,11 @@ def register(commands, bench) -> None:
     o.add_argument("--out", required=True, metavar="DIR", help="work folder (data/, run/, overfit.json); resumes")
     o.add_argument("--data", metavar="DIR", help="use the first --shapes train shapes of this dataset instead")
     o.add_argument("--shapes", type=int_in(1, 1000), default=8)
-    o.add_argument("--minutes", type=float_in(0.0, 10_000.0), default=20.0, help="predictor training time (this call)")
+    o.add_argument("--minutes", type=float_in(0.0, 10_000.0), default=20.0,
+                   help="predictor training time (this call; 0: no limit, train to --iters)")
+    o.add_argument("--iters", type=int_in(1, 10**9), default=4700,
+                   help="predictor iterations, the horizon of its cosine learning-rate decay (default 4700: what "
+                   "20 minutes hold on 2 cores)")
     o.add_argument("--batch", type=positive_int, default=32)
     o.add_argument("--set", type=_key_value, action="append", metavar="FIELD=VALUE",
                    help="override a training config field (repeat), e.g. --set lr_mesh=3e-4")

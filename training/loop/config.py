@@ -18,7 +18,8 @@ DEVICES = ("auto", "cpu", "cuda")
 GENERATOR_ARCHS = ("resize", "pix2pix")
 """``generator_arch`` values (the same as :data:`training.model.networks.GENERATOR_ARCHS`; kept here
 so the config stays torch-free)."""
-LEGACY_DEFAULTS = {"generator_arch": "pix2pix"}
+LEGACY_DEFAULTS = {"generator_arch": "pix2pix", "lr_schedule": "constant", "lr_final": 0.05, "edge_range": 1,
+                   "silhouette": "eq1", "soft_sigma": 1e-4}
 """Values for keys a saved config lacks because it predates them: what those runs were trained with
 (the field's default for new runs may differ). Used by :meth:`TrainConfig.from_dict`."""
 DEFAULT_BATCH = {"normals": 4, "mesh": 32, "joint": 4}
@@ -50,9 +51,9 @@ class TrainConfig:
             which the compact predictor's linear head in a smooth basis takes without crumpling).
         lr_warmup: the predictor's learning rate rises linearly from 0 over this many first
             iterations (0: off); the generator's RMSProp rates stay constant.
-        lr_schedule: the predictor's rate after the warm-up: "constant" or "cosine" (half a cosine
+        lr_schedule: the predictor's rate after the warm-up: "cosine" (the default: half a cosine
             from ``lr_mesh`` at step 0 down to ``lr_final * lr_mesh`` at step ``iters``; a run cut
-            short by ``max_minutes`` should set ``iters`` to what fits in the time).
+            short by ``max_minutes`` should set ``iters`` to what fits in the time) or "constant".
         lr_final: the cosine schedule's final fraction of ``lr_mesh``.
         lambda_n, lambda_s, lambda_e, lambda_m: Eq. 6 weights (paper: 0.002, 0.9, 0.9, 0.01);
             ``lambda_n = 0`` trains the silhouette-only baseline.
@@ -120,7 +121,7 @@ class TrainConfig:
     lr_mesh: float = 2e-3
     betas: tuple[float, float] = (0.9, 0.999)
     lr_warmup: int = 100
-    lr_schedule: str = "constant"
+    lr_schedule: str = "cosine"
     lr_final: float = 0.05
     lambda_n: float = 0.002
     lambda_s: float = 0.9
