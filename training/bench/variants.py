@@ -211,6 +211,7 @@ def main_variants(args) -> int:
                       f"silhouette IoU {point['silhouette_iou']:.4f}", flush=True)
     print(f"template sphere: voxel IoU {record['template']['voxel_iou']:.4f}, "
           f"silhouette IoU {record['template']['silhouette_iou']:.4f}")
+    _write(out, record)  # also when every chunk was already done: the table and plot follow the code
     print(markdown_table(record), end="")
     print(f"wrote {out / RESULT_FILE}, {out / 'variants.md'} and {out / 'variants.png'}")
     return 0
