@@ -25,12 +25,13 @@ or zero screen area are dropped (finite values, zero gradient).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import torch
 import torch.nn.functional as F_
 from torch import Tensor
 
-from training.render.rasterize import _check_inputs, project_vertices
+from training.render.rasterize import _check_inputs, project_vertices, rasterize
 
 SOFT_EPS = 1e-4
 """Face probabilities below this are dropped (they change A by less than 1e-4 per face)."""
@@ -143,10 +144,6 @@ def rasterize_for_loss(vertices, faces, cameras, image_size, *, delta=1.0, shadi
     (``edge_range`` pixels of reach); ``"soft"`` replaces its silhouette by
     :func:`soft_silhouette` (SoftRas, the outside reference), the normal image keeping Eq. 1.
     """
-    from dataclasses import replace
-
-    from training.render.rasterize import rasterize
-
     if silhouette not in SILHOUETTES:
         raise ValueError(f"silhouette must be one of {SILHOUETTES}, got {silhouette!r}")
     out = rasterize(vertices, faces, cameras, image_size, delta=delta, shading=shading, edge_range=edge_range)
