@@ -251,13 +251,26 @@ def test_gallery_writes_one_row_per_category(run_dir, exported, tmp_path, capsys
 
     out = tmp_path / "gallery.png"
     rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(out),
-               "--view", "0", "--turn", "1", "--size", "48", "--threads", "1"])
+               "--azimuth", "0", "--turn", "15", "--size", "48", "--threads", "1"])
     assert rc == 0, capsys.readouterr().err
     w, h = Image.open(out).size
     assert w == 1000 and h == 200 * 2  # 5 columns x 2 test categories of 2 inches at 100 dpi
     rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(out),
                "--categories", "nosuch"])
     assert rc != 0 and "no test shapes" in capsys.readouterr().err
+
+
+def test_gallery_picks_the_nearest_elevation_then_azimuths():
+    from training.evaluation.gallery import pick_views
+
+    # 4 azimuths x 3 elevations, elevation-major like the data command renders them
+    az = [0, 90, 180, 270] * 3
+    el = [0] * 4 + [15] * 4 + [30] * 4
+    assert pick_views(az, el, azimuth=45.0, elevation=30.0, turn=90.0) == (8, 9)  # tie 0/90: the lower index
+    assert pick_views(az, el, azimuth=100.0, elevation=2.0, turn=90.0) == (1, 2)
+    assert pick_views(az, el, azimuth=350.0, elevation=20.0, turn=200.0) == (4, 6)  # 350 ~ 0 (wraps); 0 + 200 ~ 180
+    assert pick_views(az, el, azimuth=270.0, elevation=-40.0, turn=100.0) == (3, 0)  # 270 + 100 = 370 ~ 0
+    assert pick_views([10.0], [30.0], 0.0, 30.0, 90.0) == (0, 0)  # one view: the second is the first
 
 
 def test_shade_is_lambert_with_a_white_background():

@@ -237,8 +237,12 @@ def register(commands, bench) -> None:
                    help="ONNX model folder (default: the bundled models)")
     g.add_argument("--per-category", type=positive_int, default=1, help="rows per category (default 1)")
     g.add_argument("--categories", nargs="+", metavar="NAME", help="only these categories")
-    g.add_argument("--view", type=int_in(0, 10**6), default=3, help="view index of the sketch (default 3)")
-    g.add_argument("--turn", type=int_in(1, 10**6), default=6, help="second view: this many views further (default 6 = 90 deg)")
+    g.add_argument("--elevation", type=float_in(-90.0, 90.0), default=30.0, metavar="DEG",
+                   help="the sketches' elevation: the dataset's nearest (default 30; 0 for side views)")
+    g.add_argument("--azimuth", type=float_in(0.0, 360.0), default=45.0, metavar="DEG",
+                   help="the sketches' azimuth: the dataset's nearest at that elevation (default 45)")
+    g.add_argument("--turn", type=float_in(0.0, 360.0), default=90.0, metavar="DEG",
+                   help="second view: about this many degrees of azimuth further (default 90)")
     g.add_argument("--size", type=int_in(32, 1024), default=160, help="render size of the mesh columns")
     g.add_argument("--threads", type=positive_int, default=2)
     g.set_defaults(func=_cmd_gallery)

@@ -1,9 +1,12 @@
 """``sketchmesh gallery``: a picture of what the exported models do on test sketches.
 
 One row per test shape (the first ``--per-category`` shapes of each category of the dataset's
-test split, view ``--view``): the clean sketch, the generated normal image, the predicted mesh
-rendered from the sketch's view, the same mesh from a second view ``--turn`` degrees of azimuth
-away, and the ground-truth shape from that second view. The models run through
+test split), drawn from the view nearest ``--elevation`` and ``--azimuth`` (elevation first: a
+dataset rendered at 0, 15, 30 and 45 degrees gives side views with ``--elevation 0``): the clean
+sketch, the generated normal image, the predicted mesh rendered from the sketch's view, the same
+mesh from a second view about ``--turn`` degrees of azimuth away at the same elevation (the
+dataset's view nearest it; the column title gives the turn), and the ground-truth shape from
+that second view. The models run through
 :class:`engine.pipeline.SketchEngine` (the app's path); meshes are drawn with the project's
 rasterizer and Lambert-shaded from their normals.
 """
@@ -42,10 +45,28 @@ def _render(mesh, camera: Camera, size: int) -> np.ndarray:
     return shade(out["normals"], out["silhouette"])
 
 
+def _azimuth_gap(a, b):
+    """Absolute circular difference of azimuths in degrees, in [0, 180]."""
+    d = np.abs((np.asarray(a, np.float64) - np.asarray(b, np.float64)) % 360.0)
+    return np.minimum(d, 360.0 - d)
+
+
+def pick_views(azimuths, elevations, azimuth: float, elevation: float, turn: float) -> tuple[int, int]:
+    """(sketch view, second view) of one shape: the view at the elevation nearest ``elevation`` whose
+    azimuth is nearest ``azimuth``, and the view at that same elevation nearest ``azimuth + turn``
+    (ties: the lower index). ``azimuths``/``elevations``: the shape's views, in degrees."""
+    az, el = np.asarray(azimuths, np.float64), np.asarray(elevations, np.float64)
+    level = el[np.argmin(np.abs(el - elevation))]
+    same = np.flatnonzero(el == level)
+    first = int(same[np.argmin(_azimuth_gap(az[same], azimuth))])
+    second = int(same[np.argmin(_azimuth_gap(az[same], az[first] + turn))])
+    return first, second
+
+
 def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, *, per_category: int = 1,
-                 categories: tuple[str, ...] = (), view: int = 3, turn: int = 6, size: int = 160,
-                 threads: int = 2) -> Path:
-    """Write the gallery PNG (see the module docstring); ``turn`` counts views of the dataset."""
+                 categories: tuple[str, ...] = (), azimuth: float = 45.0, elevation: float = 30.0,
+                 turn: float = 90.0, size: int = 160, threads: int = 2) -> Path:
+    """Write the gallery PNG (see the module docstring); angles in degrees."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -57,29 +78,37 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
     from training.evaluation.evaluate import world_vertices
 
     test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
-    chosen: dict[str, list[int]] = {}
-    for i, (si, v) in enumerate(test._items):
-        rec = test._shapes[si]
+    angles: dict[tuple[str, str], dict[int, tuple[float, float]]] = {}
+    for r in test.manifest["views"]:
+        angles.setdefault((r["category"], r["shape_id"]), {})[int(r["view"])] = (float(r["azimuth"]), float(r["elevation"]))
+    index = {item: i for i, item in enumerate(test._items)}
+    chosen: dict[str, list[tuple[int, int]]] = {}
+    for si, rec in enumerate(test._shapes):
         if categories and rec["category"] not in categories:
             continue
-        n_views = int(rec["num_views"])
-        if v != view % n_views:
+        if len(chosen.setdefault(rec["category"], [])) >= per_category:
             continue
-        if len(chosen.setdefault(rec["category"], [])) < per_category:
-            chosen[rec["category"]].append(i)
-    rows = [i for cat in sorted(chosen) for i in chosen[cat]]
+        by_view = angles[(rec["category"], rec["shape_id"])]
+        n = int(rec["num_views"])
+        first, second = pick_views([by_view[v][0] for v in range(n)], [by_view[v][1] for v in range(n)],
+                                   azimuth, elevation, turn)
+        chosen[rec["category"]].append((index[(si, first)], second))
+    rows = [row for cat in sorted(chosen) for row in chosen[cat]]
     if not rows:
         raise GalleryError(f"no test shapes in {data_dir}" + (f" for categories {', '.join(categories)}" if categories else ""))
     engine = SketchEngine(models_dir, threads=threads, cache_size=0)
-    cols = ("sketch", "generated normals", "mesh, sketch view", f"mesh, +{15 * turn} deg", f"ground truth, +{15 * turn} deg")
-    fig, axes = plt.subplots(len(rows), len(cols), figsize=(2.0 * len(cols), 2.0 * len(rows)), dpi=100, squeeze=False)
-    for r, i in enumerate(rows):
+    fig, axes = plt.subplots(len(rows), 5, figsize=(2.0 * 5, 2.0 * len(rows)), dpi=100, squeeze=False)
+    for r, (i, second) in enumerate(rows):
         item = test[i]
         si, v = test._items[i]
         rec = test._shapes[si]
+        by_view = angles[(rec["category"], rec["shape_id"])]
+        (az_1, el_1), (az_2, _) = by_view[v], by_view[second]
+        gap = (az_2 - az_1) % 360.0
+        cols = ("sketch", "generated normals", "mesh, sketch view", f"mesh, +{gap:g} deg", f"ground truth, +{gap:g} deg")
         cams = test._cache.get(test._path(rec), "cameras")
         cam_in = Camera.from_array(cams[v])
-        cam_2 = Camera.from_array(cams[(v + turn) % int(rec["num_views"])])
+        cam_2 = Camera.from_array(cams[second])
         sketch = item["sketch"][0].numpy()
         pred = engine.predict(sketch, want_normals=True)
         gt = test.load_mesh(rec["category"], rec["shape_id"])
@@ -99,7 +128,7 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
             if r == 0:
                 ax.set_title(cols[c], fontsize=9)
             if c == 0:
-                ax.set_ylabel(rec["category"], fontsize=9)
+                ax.set_ylabel(f"{rec['category']}\naz {az_1:g}, el {el_1:g}", fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
@@ -113,10 +142,10 @@ def main_gallery(args: argparse.Namespace) -> int:
 
     models = resolve_models_dir(getattr(args, "models", None))
     path = make_gallery(models, args.data, args.output, per_category=args.per_category,
-                        categories=tuple(args.categories or ()), view=args.view, turn=args.turn, size=args.size,
-                        threads=args.threads)
+                        categories=tuple(args.categories or ()), azimuth=args.azimuth, elevation=args.elevation,
+                        turn=args.turn, size=args.size, threads=args.threads)
     print(f"wrote {path}")
     return 0
 
 
-__all__ = ["GalleryError", "main_gallery", "make_gallery", "shade"]
+__all__ = ["GalleryError", "main_gallery", "make_gallery", "pick_views", "shade"]
