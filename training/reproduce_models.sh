@@ -5,7 +5,9 @@
 #
 # Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
 #   eval-gt tradeoff gallery docs clamp-trial overfit variants
-#   (or "all"). Every training step resumes from its last checkpoint when rerun, so a step
+#   (or "all"); the next models' (issue 16, in progress): data-v2 normals-v2 mesh-v2
+#   silhouette-v2 (the three trainings can run side by side, one thread each).
+#   Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
 # Environment (defaults in brackets):
@@ -17,6 +19,7 @@
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
 #   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
 #   LOCAL_BOUND [tanh]    the predictor's offset bound (clamp: see the clamp-trial step)
+#   DATA2 [data/proc100e4] RUNS2 [runs/v2] GEN2_ITERS [4000] MESH2_ITERS [16000]   the next models'
 set -euo pipefail
 
 DATA=${DATA:-data/proc30}
@@ -29,6 +32,12 @@ JOINT_ITERS=${JOINT_ITERS:-500}
 SAMPLES=${SAMPLES:-312}
 TRADEOFF_SAMPLES=${TRADEOFF_SAMPLES:-156}
 LOCAL_BOUND=${LOCAL_BOUND:-tanh}
+# The next models (issue 16): the varied shape library, 100 shapes per category, four elevations,
+# today's training defaults (resize generator, compact predictor with the cosine decay).
+DATA2=${DATA2:-data/proc100e4}
+RUNS2=${RUNS2:-runs/v2}
+GEN2_ITERS=${GEN2_ITERS:-4000}
+MESH2_ITERS=${MESH2_ITERS:-16000}
 # The bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
@@ -120,16 +129,28 @@ step() {
       # the cosine default over two hours (resumable: a later call continues the finished chunks)
       sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
         --variant cosine120:lr_schedule=cosine,iters=30000 ;;
+    data-v2)  # 1,300 shapes x 12 azimuths x 4 elevations (0, 15, 30, 45 degrees): 62,400 views
+      sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 \
+        --workers 2 --out "$DATA2" ;;
+    normals-v2)  # the resize generator, width 16 (one thread)
+      sketchmesh train normals --data "$DATA2" --out "$RUNS2/normals16" --base-channels 16 --batch 4 \
+        --iters "$GEN2_ITERS" --threads 1 --ckpt-every 100 ;;
+    mesh-v2)  # the default predictor and loss (cosine decay over MESH2_ITERS; one thread)
+      sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_full" --iters "$MESH2_ITERS" --threads 1 \
+        --ckpt-every 250 --val-every 2000 ;;
+    silhouette-v2)  # the Table-1 baseline: mesh-v2 with the normal-loss weight 0
+      sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_silhouette" --iters "$MESH2_ITERS" --threads 1 \
+        --lambda-n 0 --ckpt-every 250 --val-every 2000 ;;
     all)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 mesh-v2 silhouette-v2 all)" >&2
       exit 2 ;;
   esac
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,19p' "$0"
+  sed -n '2,21p' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
