@@ -249,11 +249,15 @@ def test_killed_run_resumes_from_its_last_checkpoint(data_dir, tmp_path):
     assert proc.returncode == -signal.SIGKILL
     killed_at = int(checkpoint_paths(run)[0].name[5:13])
     assert 2 <= killed_at < 6
+    # the checkpoint holds the training time up to it: at least the 0.4 s slept per iteration
+    killed_seconds = load_latest_checkpoint(run)["extra"]["train_seconds"]
+    assert killed_seconds >= 0.4 * killed_at
     done = subprocess.run([c for c in cmd if c != "--debug-sleep" and c != "0.4"], cwd=ROOT, capture_output=True,
                           text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "resumed from" in (run / "events.log").read_text()
     assert load_latest_checkpoint(run)["iteration"] == 6
+    assert load_latest_checkpoint(run)["extra"]["train_seconds"] > killed_seconds  # resumed, not restarted
     its = [int(r["iteration"]) for r in read_log(run)]
     assert its == list(range(1, 7)), its  # rows past the checkpoint were dropped, then continued
 

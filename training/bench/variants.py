@@ -2,7 +2,9 @@
 
 Each variant is a set of :class:`training.loop.config.TrainConfig` overrides on a shared base (mesh
 mode, the dataset of ``--data``). Every variant trains for ``--minutes`` of wall time in ``--points``
-equal chunks (each chunk resumes the variant's run from its checkpoint); after each chunk its
+equal chunks (each chunk resumes the variant's run from its checkpoint; a chunk killed after a
+checkpoint, by a session that ended, counts the training that checkpoint holds towards the next
+call's chunk, from the trainer's cumulative ``train_seconds``); after each chunk its
 newest checkpoint is scored on the test split with ground-truth normal images as input
 (:func:`training.evaluation.evaluate.evaluate` with ``gt_normals=True``: the mesh step alone,
 voxel IoU at 32^3, Chamfer-L1 and silhouette IoU). Training time excludes the scoring.
@@ -143,6 +145,25 @@ def _template_scores(base, run: Path, test_set, max_samples: int) -> dict:
     return {k: float(res["mean"][k]) for k in ("voxel_iou", "silhouette_iou", "chamfer_l1")}
 
 
+def _already_trained(run_dir: Path, last_point: dict | None) -> float:
+    """Seconds of training the run's newest checkpoint holds beyond the last scored point.
+
+    Zero unless a chunk was killed after writing a checkpoint: the trainer records its cumulative
+    training time in every checkpoint (``train_seconds``) and each point records it as
+    ``run_seconds``, so the difference is what the killed chunk trained. Points and checkpoints
+    from before this was recorded give 0 (unknown).
+    """
+    from training.loop.checkpoint import load_latest_checkpoint
+
+    state = load_latest_checkpoint(run_dir) if run_dir.exists() else None
+    if state is None:
+        return 0.0
+    if last_point is not None and "run_seconds" not in last_point:
+        return 0.0
+    base = float(last_point["run_seconds"]) if last_point is not None else 0.0
+    return max(0.0, float(state.get("extra", {}).get("train_seconds", 0.0)) - base)
+
+
 def main_variants(args) -> int:
     """``sketchmesh bench variants``; see the module docstring."""
     import torch
@@ -190,18 +211,22 @@ def main_variants(args) -> int:
             raise SketchmeshError(f"variant {name} was run with another config before; use a new name or --out")
         trained_s = done[-1]["train_minutes"] * 60.0 if done else 0.0
         for k in range(len(done), int(args.points)):
+            # a chunk killed after a checkpoint (a session that ended) already trained part of this one
+            already = _already_trained(Path(cfg.out_dir), done[-1] if done else None)
             if not args.quiet:
-                print(f"{label(name, cfg.to_dict())}: chunk {k + 1}/{args.points} ({chunk:g} min)", flush=True)
+                note = f", {already / 60:.2f} min of it trained before a kill" if already else ""
+                print(f"{label(name, cfg.to_dict())}: chunk {k + 1}/{args.points} ({chunk:g} min{note})", flush=True)
             t0 = time.perf_counter()
-            trainer = Trainer(cfg.replace(max_minutes=chunk), progress=not args.quiet)
+            trainer = Trainer(cfg.replace(max_minutes=max(chunk - already / 60.0, 1e-6)), progress=not args.quiet)
             trainer.run()
-            trained_s += time.perf_counter() - t0
+            trained_s += time.perf_counter() - t0 + already
             with torch.no_grad():
                 res = evaluate(cfg.out_dir, data, gt_normals=True, retrieval=False, max_samples=args.max_samples,
                                progress=False, test_set=test_set)
             m = res["mean"]
             point = {"variant": name, "chunk": k + 1, "train_minutes": trained_s / 60.0,
-                     "iteration": trainer.iteration, "voxel_iou": float(m["voxel_iou"]),
+                     "iteration": trainer.iteration, "run_seconds": trainer.train_seconds,
+                     "voxel_iou": float(m["voxel_iou"]),
                      "silhouette_iou": float(m["silhouette_iou"]), "chamfer_l1": float(m["chamfer_l1"]),
                      "samples": int(res["samples"]), "config": cfg.to_dict()}
             record["points"].append(point)

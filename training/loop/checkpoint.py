@@ -9,7 +9,9 @@ Layout of a run folder::
 A checkpoint is a plain dict of tensors and primitive types so it loads with
 ``torch.load(weights_only=True)``: ``{"format", "iteration", "config" (JSON string),
 "code_version", "models" {name: state_dict}, "optimizers" {name: state_dict},
-"rng" {"torch", "numpy", "python", ["cuda"]}, "extra" {...}}``.
+"rng" {"torch", "numpy", "python", ["cuda"]}, "extra" {...}}``. The trainer's ``extra`` holds
+``world_size`` and ``train_seconds``, the wall time the run has trained up to this checkpoint over
+all its invocations (absent in checkpoints written before it was recorded).
 
 Each file is written to a temporary sibling, fsynced and renamed (:mod:`engine.fileio`), so an
 interrupted write leaves the previous checkpoints intact; a load that finds the newest file

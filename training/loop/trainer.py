@@ -366,6 +366,8 @@ class Trainer:
             self.faces = torch.from_numpy(np.array(template.faces)).to(self.device)
 
         self.iteration = 0
+        self.train_seconds = 0.0  # wall time in run(), over every invocation, up to the newest checkpoint (saved in it)
+        self._clock: tuple[float, float] | None = None  # (train_seconds, perf_counter) when run() started
         state = load_latest_checkpoint(self.run_dir) if self.run_dir.exists() else None
         if state is not None and not resume:
             raise TrainingError(f"run folder {self.run_dir} already has checkpoints; resume it or choose a new --out")
@@ -420,6 +422,8 @@ class Trainer:
         except (RuntimeError, KeyError, ValueError) as exc:
             raise TrainingError(f"checkpoint {state['path']} does not fit the models: {exc}") from None
         self.iteration = int(state["iteration"])
+        # checkpoints from before this was recorded give 0: the time of those runs is unknown
+        self.train_seconds = float(state.get("extra", {}).get("train_seconds", 0.0))
         # the resolved config rules: learning rates and betas given now override the checkpoint's
         lrs = {"generator": self.cfg.lr_g, "discriminator": self.cfg.lr_d, "predictor": self.cfg.lr_mesh}
         for name, opt in self.optimizers.items():
@@ -463,10 +467,13 @@ class Trainer:
     def save(self) -> Path | None:
         """Checkpoint now (rank 0), and remember this as the last good state."""
         self.good_state = self._snapshot()
+        if self._clock is not None:
+            self.train_seconds = self._clock[0] + (time.perf_counter() - self._clock[1])
         if not self.info.is_main:
             return None
         return save_checkpoint(self.run_dir, self.iteration, self.cfg.to_json(), self.version, self.models,
-                               self.optimizers, extra={"world_size": self.info.world_size})
+                               self.optimizers, extra={"world_size": self.info.world_size,
+                                                       "train_seconds": self.train_seconds})
 
     # ---- logging ----
     def _event(self, text: str) -> None:
@@ -719,6 +726,7 @@ class Trainer:
         last = {}
         t_window, n_window, skipped = time.perf_counter(), 0, 0
         t_start = time.perf_counter()
+        self._clock = (self.train_seconds, t_start)
         data_iter = iter(loader)
         try:
             deadline = t_start + 60.0 * cfg.max_minutes if cfg.max_minutes > 0 else float("inf")
@@ -760,6 +768,7 @@ class Trainer:
             self.save()
             self.plot_curves()
         finally:
+            self._clock = None  # train_seconds stays what the newest checkpoint holds
             bar.close()
             del data_iter
         return last
