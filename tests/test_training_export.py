@@ -283,6 +283,23 @@ def test_shade_is_lambert_with_a_white_background():
     assert shade(encode_normals(n), np.array([[0, 0, 0]])).tolist() == [[1.0, 1.0, 1.0]]
 
 
+def test_retrieval_index_from_the_array_cache_equals_the_shape_files(run_dir, monkeypatch):
+    """eval's retrieval index reads the mesh-array cache in chunks: the same rows as item by item from the shape files."""
+    import torch
+
+    import training.evaluation.evaluate as E
+    from training.data.dataset import ShapeViewDataset
+
+    data = run_dir.parent / "data"
+    files = E._RetrievalMethod(ShapeViewDataset(data, "train", extra_views=0, augment_strength=0.0, mesh_cache="none"),
+                               None, False)
+    monkeypatch.setattr(E, "RETRIEVAL_CHUNK", 3)  # several chunks and a remainder
+    cached = E._RetrievalMethod(ShapeViewDataset(data, "train", extra_views=0, fields="mesh"), None, False)
+    assert len(files.keys) > 3 and len(files.keys) % 3 != 0
+    assert torch.equal(files.images, cached.images)
+    assert np.array_equal(files.cameras, cached.cameras) and files.keys == cached.keys
+
+
 def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
     from training.evaluation.evaluate import METRICS, markdown_table
 

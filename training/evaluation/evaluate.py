@@ -104,11 +104,15 @@ class _RetrievalMethod(_Method):
         if n == 0:
             raise EvaluationError("the retrieval baseline needs a non-empty train split")
         images, cams, keys = [], [], []
-        for i in tqdm(range(n), desc="retrieval index", disable=not progress, unit="img"):
-            item = train_set[i]
-            images.append(torch.as_tensor(np.asarray(item["normals64"]), dtype=torch.float16))
-            cams.append(np.asarray(item["camera"], dtype=np.float64))
-            keys.append((item["category"], item["shape_id"]))
+        # in batches: a mesh-fields dataset gathers each batch from its array cache at once
+        get = getattr(train_set, "__getitems__", None) or (lambda idx: [train_set[i] for i in idx])
+        with tqdm(total=n, desc="retrieval index", disable=not progress, unit="img") as bar:
+            for s in range(0, n, RETRIEVAL_CHUNK):
+                for item in get(list(range(s, min(s + RETRIEVAL_CHUNK, n)))):
+                    images.append(torch.as_tensor(np.asarray(item["normals64"]), dtype=torch.float16))
+                    cams.append(np.asarray(item["camera"], dtype=np.float64))
+                    keys.append((item["category"], item["shape_id"]))
+                bar.update(min(RETRIEVAL_CHUNK, n - s))
         self.images = torch.stack(images).reshape(n, -1)  # (N, 3 * 64 * 64) float16
         self.cameras = np.stack(cams)
         self.keys = keys
@@ -254,7 +258,8 @@ def evaluate(
         methods.append(_RunMethod(name, bgen, bpred, bcfg, gt_normals))
     if retrieval:
         if train_set is None:
-            train_set = make_dataset(data_cfg.replace(augment_strength=0.0), "train")
+            # only the 64x64 normal images and cameras, from the dataset's array cache (not every shape file)
+            train_set = make_dataset(data_cfg.replace(augment_strength=0.0, extra_views=0), "train", fields="mesh")
         methods.append(_RetrievalMethod(train_set, methods[0], progress))
 
     indices = np.arange(len(test_set))
