@@ -313,3 +313,7 @@ def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
     assert "| car | 0.250 / 0.100 | 0.500 / 0.050 |" in table
     assert "| lamp | 0.125 / 0.200 | 0.250 / 0.100 |" in table
     assert "| full | 0.5000 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table
+    assert table.splitlines()[0] == "Voxel IoU (32^3) / Chamfer-L1 on the test split, 4 samples"
+    side = markdown_table({**result, "elevation": 0.0, "augment_strength": 1.0})
+    assert side.splitlines()[0].endswith("4 samples, views at 0 degrees elevation, sketches augmented at strength 1")
+    assert markdown_table({**result, "gt_normals": True}).splitlines()[0].endswith("4 samples, ground-truth normals")

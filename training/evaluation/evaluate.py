@@ -330,6 +330,8 @@ def evaluate(
         "split": split,
         "samples": int(len(indices)),
         "gt_normals": bool(gt_normals),
+        "elevation": None if elevation is None else float(elevation),
+        "augment_strength": float(augment_strength),
         "voxel_resolution": int(voxel_resolution),
         "seconds": time.perf_counter() - t_start,
     }
@@ -339,8 +341,15 @@ def markdown_table(result: dict) -> str:
     """Voxel IoU / Chamfer-L1 per category (rows) and method (columns), then every metric's mean and the cost."""
     names = result["method_order"]
     cats = sorted({c for n in names for c in result["methods"][n]["per_category"]})
+    what = [f"{result['samples']} samples"]
+    if result.get("elevation") is not None:
+        what.append(f"views at {result['elevation']:g} degrees elevation")
+    if result["gt_normals"]:
+        what.append("ground-truth normals")
+    elif result.get("augment_strength"):
+        what.append(f"sketches augmented at strength {result['augment_strength']:g}")
     lines = [f"Voxel IoU ({result['voxel_resolution']}^3) / Chamfer-L1 on the {result['split']} split, "
-             f"{result['samples']} samples{' (ground-truth normals)' if result['gt_normals'] else ''}", "",
+             + ", ".join(what), "",
              "| category | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
     for c in cats:
         cells = []
