@@ -6,7 +6,8 @@
 # Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
 #   eval-gt tradeoff gallery docs clamp-trial overfit variants
 #   (or "all"); the next models' (issue 16, in progress): data-v2 normals-v2 mesh-v2
-#   silhouette-v2 (the three trainings can run side by side, one thread each).
+#   silhouette-v2 (the three trainings can run side by side, one thread each), then joint-v2
+#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 gallery-v2.
 #   Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -19,7 +20,8 @@
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
 #   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
 #   LOCAL_BOUND [tanh]    the predictor's offset bound (clamp: see the clamp-trial step)
-#   DATA2 [data/proc100e4] RUNS2 [runs/v2] GEN2_ITERS [4000] MESH2_ITERS [16000]   the next models'
+#   DATA2 [data/proc100e4] RUNS2 [runs/v2] OUT2 [out/v2] GEN2_ITERS [4000] MESH2_ITERS [16000]
+#   JOINT2_ITERS [500]    the next models' (issue 16)
 set -euo pipefail
 
 DATA=${DATA:-data/proc30}
@@ -38,6 +40,8 @@ DATA2=${DATA2:-data/proc100e4}
 RUNS2=${RUNS2:-runs/v2}
 GEN2_ITERS=${GEN2_ITERS:-4000}
 MESH2_ITERS=${MESH2_ITERS:-16000}
+JOINT2_ITERS=${JOINT2_ITERS:-500}
+OUT2=${OUT2:-out/v2}
 # The bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
@@ -141,16 +145,41 @@ step() {
     silhouette-v2)  # the Table-1 baseline: mesh-v2 with the normal-loss weight 0
       sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_silhouette" --iters "$MESH2_ITERS" --threads 1 \
         --lambda-n 0 --ckpt-every 250 --val-every 2000 ;;
+    joint-v2)  # end-to-end fine-tune from the two pre-trainings; the predictor at 1/20 of its pre-training rate
+      sketchmesh train joint --data "$DATA2" --out "$RUNS2/joint" --base-channels 16 --batch 4 \
+        --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_full" --lr-mesh 1e-4 --lr-warmup 0 \
+        --iters "$JOINT2_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
+    export-v2)  # the fine-tuned pair (float32; int8 predictor) and the pairs before it (full, silhouette-only)
+      sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
+      sketchmesh export "$RUNS2/joint" -o "$OUT2/models_int8" --quantize int8
+      sketchmesh export "$RUNS2/mesh_full" --generator-run "$RUNS2/normals16" -o "$OUT2/models_pretrained"
+      sketchmesh export "$RUNS2/mesh_silhouette" --generator-run "$RUNS2/normals16" -o "$OUT2/models_silhouette" ;;
+    eval-v2|eval-strong-v2|eval-side-v2|eval-gt-v2)  # clean sketches; strong augmentation; 0-degree views only;
+      # ground-truth normal images (the mesh step alone). mesh_full and mesh_silhouette read the pre-trained
+      # generator's normal images, joint its own.
+      local extra=() name=eval_clean
+      case "$1" in
+        eval-strong-v2) extra=(--augment-strength 1.0); name=eval_strong ;;
+        eval-side-v2) extra=(--elevation 0); name=eval_side ;;
+        eval-gt-v2) extra=(--gt-normals); name=eval_gt_normals ;;
+      esac
+      local base=(--baseline-run "$RUNS2/mesh_silhouette")
+      [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
+      sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
+        --max-samples "$SAMPLES" --threads 2 --out "$OUT2/$name" ;;
+    gallery-v2)  # the fine-tuned pair on one test shape per category, from 30 degrees and from the side
+      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" -o "$OUT2/gallery.png"
+      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" --elevation 0 --azimuth 90 -o "$OUT2/gallery_side.png" ;;
     all)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 mesh-v2 silhouette-v2 all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 gallery-v2 all)" >&2
       exit 2 ;;
   esac
 }
 
 if [ $# -eq 0 ]; then
-  sed -n '2,21p' "$0"
+  sed -n '2,/^set -euo/{/^set/!p}' "$0"
   exit 2
 fi
 for s in "$@"; do step "$s"; done
