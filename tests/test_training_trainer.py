@@ -335,7 +335,13 @@ def test_max_minutes_stops_the_run_with_a_checkpoint_and_resume_continues(data_d
     Trainer(cfg, progress=False).run()
     assert "--max-minutes" in (run / "events.log").read_text()
     assert load_latest_checkpoint(run)["iteration"] == 0  # stopped before any step, state saved
-    Trainer(cfg.replace(iters=2, max_minutes=0.0), progress=False).run()  # resuming without the limit finishes
+    resumed = Trainer(cfg.replace(iters=2, max_minutes=0.0), progress=False)
+    # the resumed trainer continues the checkpoint's training time
+    assert resumed.train_seconds == load_latest_checkpoint(run)["extra"]["train_seconds"] > 0.0
+    resumed.run()  # resuming without the limit finishes
+    assert load_latest_checkpoint(run)["iteration"] == 2
+    # a limit given to run() overrides the config's
+    Trainer(cfg.replace(iters=4, max_minutes=0.0), progress=False).run(max_minutes=1e-9)
     assert load_latest_checkpoint(run)["iteration"] == 2
 
 

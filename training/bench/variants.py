@@ -145,23 +145,19 @@ def _template_scores(base, run: Path, test_set, max_samples: int) -> dict:
     return {k: float(res["mean"][k]) for k in ("voxel_iou", "silhouette_iou", "chamfer_l1")}
 
 
-def _already_trained(run_dir: Path, last_point: dict | None) -> float:
-    """Seconds of training the run's newest checkpoint holds beyond the last scored point.
+def _already_trained(train_seconds: float, last_point: dict | None) -> float:
+    """Seconds of training a resumed run holds (``train_seconds``, from its newest checkpoint) beyond
+    the last scored point.
 
     Zero unless a chunk was killed after writing a checkpoint: the trainer records its cumulative
-    training time in every checkpoint (``train_seconds``) and each point records it as
-    ``run_seconds``, so the difference is what the killed chunk trained. Points and checkpoints
-    from before this was recorded give 0 (unknown).
+    training time in every checkpoint and each point records it as ``run_seconds``, so the
+    difference is what the killed chunk trained. A point from before this was recorded gives 0
+    (unknown).
     """
-    from training.loop.checkpoint import load_latest_checkpoint
-
-    state = load_latest_checkpoint(run_dir) if run_dir.exists() else None
-    if state is None:
-        return 0.0
     if last_point is not None and "run_seconds" not in last_point:
         return 0.0
     base = float(last_point["run_seconds"]) if last_point is not None else 0.0
-    return max(0.0, float(state.get("extra", {}).get("train_seconds", 0.0)) - base)
+    return max(0.0, float(train_seconds) - base)
 
 
 def main_variants(args) -> int:
@@ -211,14 +207,14 @@ def main_variants(args) -> int:
             raise SketchmeshError(f"variant {name} was run with another config before; use a new name or --out")
         trained_s = done[-1]["train_minutes"] * 60.0 if done else 0.0
         for k in range(len(done), int(args.points)):
+            t0 = time.perf_counter()
+            trainer = Trainer(cfg, progress=not args.quiet)
             # a chunk killed after a checkpoint (a session that ended) already trained part of this one
-            already = _already_trained(Path(cfg.out_dir), done[-1] if done else None)
+            already = _already_trained(trainer.train_seconds, done[-1] if done else None)
             if not args.quiet:
                 note = f", {already / 60:.2f} min of it trained before a kill" if already else ""
                 print(f"{label(name, cfg.to_dict())}: chunk {k + 1}/{args.points} ({chunk:g} min{note})", flush=True)
-            t0 = time.perf_counter()
-            trainer = Trainer(cfg.replace(max_minutes=max(chunk - already / 60.0, 1e-6)), progress=not args.quiet)
-            trainer.run()
+            trainer.run(max_minutes=max(chunk - already / 60.0, 1e-6))
             trained_s += time.perf_counter() - t0 + already
             with torch.no_grad():
                 res = evaluate(cfg.out_dir, data, gt_normals=True, retrieval=False, max_samples=args.max_samples,

@@ -702,11 +702,12 @@ class Trainer:
         return path
 
     # ---- the loop ----
-    def run(self) -> dict[str, float]:
-        """Train until ``cfg.iters``; returns the last logged window's mean terms."""
+    def run(self, max_minutes: float | None = None) -> dict[str, float]:
+        """Train until ``cfg.iters``, or ``max_minutes`` (default ``cfg.max_minutes``) of this call; returns
+        the last logged window's mean terms."""
         from tqdm import tqdm
 
-        cfg = self.cfg
+        cfg = self.cfg if max_minutes is None else self.cfg.replace(max_minutes=max_minutes)
         if self.info.is_main:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             self._prepare_log()
