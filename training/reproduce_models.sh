@@ -3,11 +3,12 @@
 #
 #   bash training/reproduce_models.sh STEP...      (steps run in the order given)
 #
-# Steps: data normals normals16 mesh silhouette paper-normal joint export eval eval-strong
-#   eval-gt tradeoff gallery docs clamp-trial overfit variants
-#   (or "all"); the next models' (issue 16, in progress): data-v2 normals-v2 mesh-v2
-#   silhouette-v2 (the three trainings can run side by side, one thread each), then joint-v2
-#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 gallery-v2.
+# The bundled models (issue 16; "all" runs these in order): data-v2, then normals-v2 normals8-v2
+#   mesh-v2 silhouette-v2 (the four trainings run side by side, one thread each), then joint-v2
+#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2.
+# The first models and the experiments that chose today's training defaults (the README's history):
+#   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
+#   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
 #   Every training step resumes from its last checkpoint when rerun, so a step
 #   that was stopped (or a session that ended) continues where it was.
 #
@@ -20,8 +21,10 @@
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
 #   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
 #   LOCAL_BOUND [tanh]    the predictor's offset bound (clamp: see the clamp-trial step)
-#   DATA2 [data/proc100e4] RUNS2 [runs/v2] OUT2 [out/v2] GEN2_ITERS [4000] MESH2_ITERS [16000]
-#   JOINT2_ITERS [500]    the next models' (issue 16)
+#   DATA2 [data/proc100e4] RUNS2 [runs/v2] OUT2 [out/v2] GEN2_ITERS [3000] MESH2_ITERS [8000]
+#   JOINT2_ITERS [150] SAMPLES2 [156]  the bundled models' (issue 16): what one 3-hour session on
+#                         2 cores holds, data and evaluation included; more iterations are better
+#                         (every step resumes)
 set -euo pipefail
 
 DATA=${DATA:-data/proc30}
@@ -38,9 +41,10 @@ LOCAL_BOUND=${LOCAL_BOUND:-tanh}
 # today's training defaults (resize generator, compact predictor with the cosine decay).
 DATA2=${DATA2:-data/proc100e4}
 RUNS2=${RUNS2:-runs/v2}
-GEN2_ITERS=${GEN2_ITERS:-4000}
-MESH2_ITERS=${MESH2_ITERS:-16000}
-JOINT2_ITERS=${JOINT2_ITERS:-500}
+GEN2_ITERS=${GEN2_ITERS:-3000}
+MESH2_ITERS=${MESH2_ITERS:-8000}
+JOINT2_ITERS=${JOINT2_ITERS:-150}
+SAMPLES2=${SAMPLES2:-156}
 OUT2=${OUT2:-out/v2}
 # The bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
@@ -83,9 +87,7 @@ step() {
       sketchmesh export "$RUNS/joint" -o "$OUT/models_fp32"
       sketchmesh export "$RUNS/joint" -o "$OUT/models_int8" --quantize int8
       sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals32" -o "$OUT/models_w32_pretrained"
-      sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals16" -o "$OUT/models_w16_pretrained"
-      mkdir -p assets/models
-      cp "$OUT/models_int8/"*.onnx assets/models/ ;;
+      sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals16" -o "$OUT/models_w16_pretrained" ;;
     eval)
       sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" \
@@ -139,6 +141,9 @@ step() {
     normals-v2)  # the resize generator, width 16 (one thread)
       sketchmesh train normals --data "$DATA2" --out "$RUNS2/normals16" --base-channels 16 --batch 4 \
         --iters "$GEN2_ITERS" --threads 1 --ckpt-every 100 ;;
+    normals8-v2)  # the same at width 8: the other point of the error-against-run-time table
+      sketchmesh train normals --data "$DATA2" --out "$RUNS2/normals8" --base-channels 8 --batch 4 \
+        --iters "$GEN2_ITERS" --threads 1 --ckpt-every 100 ;;
     mesh-v2)  # the default predictor and loss (cosine decay over MESH2_ITERS; one thread)
       sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_full" --iters "$MESH2_ITERS" --threads 1 \
         --ckpt-every 250 --val-every 2000 ;;
@@ -153,7 +158,8 @@ step() {
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_int8" --quantize int8
       sketchmesh export "$RUNS2/mesh_full" --generator-run "$RUNS2/normals16" -o "$OUT2/models_pretrained"
-      sketchmesh export "$RUNS2/mesh_silhouette" --generator-run "$RUNS2/normals16" -o "$OUT2/models_silhouette" ;;
+      sketchmesh export "$RUNS2/mesh_silhouette" --generator-run "$RUNS2/normals16" -o "$OUT2/models_silhouette"
+      sketchmesh export "$RUNS2/mesh_full" --generator-run "$RUNS2/normals8" -o "$OUT2/models_w8_pretrained" ;;
     eval-v2|eval-strong-v2|eval-side-v2|eval-gt-v2)  # clean sketches; strong augmentation; 0-degree views only;
       # ground-truth normal images (the mesh step alone). mesh_full and mesh_silhouette read the pre-trained
       # generator's normal images, joint its own.
@@ -166,14 +172,33 @@ step() {
       local base=(--baseline-run "$RUNS2/mesh_silhouette")
       [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
       sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
-        --max-samples "$SAMPLES" --threads 2 --out "$OUT2/$name" ;;
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$name" ;;
     gallery-v2)  # the fine-tuned pair on one test shape per category, from 30 degrees and from the side
       sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" -o "$OUT2/gallery.png"
       sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" --elevation 0 --azimuth 90 -o "$OUT2/gallery_side.png" ;;
+    tradeoff-v2)  # error against run time: generator width, precision and template level, in the app's engine
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-joint=$OUT2/models_fp32" \
+        --variant "w16=$OUT2/models_pretrained" --variant "w8=$OUT2/models_w8_pretrained" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-joint:int8-predictor \
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT2/tradeoff" ;;
+    ship-v2)  # the chosen pair becomes the app's bundled models
+      mkdir -p assets/models
+      cp "$OUT2/models_int8/"*.onnx assets/models/ ;;
+    docs-v2)  # the README's pictures, from the outputs above and the app itself (Xvfb when headless)
+      mkdir -p docs
+      cp "$OUT2/gallery.png" docs/gallery.png
+      cp "$OUT2/gallery_side.png" docs/gallery_side.png
+      cp "$OUT2/tradeoff/tradeoff.png" docs/tradeoff.png
+      cp "$OUT2/eval_clean/eval_test.png" docs/eval_test.png
+      local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
+      if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     all)
-      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs; do step "$s"; done ;;
+      for s in data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 \
+               eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2; do step "$s"; done ;;
+    all-v1)
+      for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 gallery-v2 all)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2 all all-v1)" >&2
       exit 2 ;;
   esac
 }
