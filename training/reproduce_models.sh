@@ -21,7 +21,7 @@
 #   SAMPLES [312]         test sketches evaluated (24 per category, evenly spaced; 0 = all 960)
 #   TRADEOFF_SAMPLES [156]  test sketches per variant in the error-against-run-time table
 #   LOCAL_BOUND [tanh]    the predictor's offset bound (clamp: see the clamp-trial step)
-#   DATA2 [data/proc100e4] RUNS2 [runs/v2] OUT2 [out/v2] GEN2_ITERS [3000] MESH2_ITERS [8000]
+#   DATA2 [data/proc100e4] RUNS2 [runs/v2] OUT2 [out/v2] GEN2_ITERS [3000] MESH2_ITERS [6500]
 #   JOINT2_ITERS [150] SAMPLES2 [156]  the bundled models' (issue 16): what one 3-hour session on
 #                         2 cores holds, data and evaluation included; more iterations are better
 #                         (every step resumes)
@@ -42,7 +42,7 @@ LOCAL_BOUND=${LOCAL_BOUND:-tanh}
 DATA2=${DATA2:-data/proc100e4}
 RUNS2=${RUNS2:-runs/v2}
 GEN2_ITERS=${GEN2_ITERS:-3000}
-MESH2_ITERS=${MESH2_ITERS:-8000}
+MESH2_ITERS=${MESH2_ITERS:-6500}
 JOINT2_ITERS=${JOINT2_ITERS:-150}
 SAMPLES2=${SAMPLES2:-156}
 OUT2=${OUT2:-out/v2}
