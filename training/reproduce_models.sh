@@ -5,7 +5,7 @@
 #
 # The bundled models (issue 16; "all" runs these in order): data-v2, then normals-v2 normals8-v2
 #   mesh-v2 silhouette-v2 (the four trainings run side by side, one thread each), then joint-v2
-#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2.
+#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -154,11 +154,14 @@ step() {
       sketchmesh train joint --data "$DATA2" --out "$RUNS2/joint" --base-channels 16 --batch 4 \
         --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_full" --lr-mesh 1e-4 --lr-warmup 0 \
         --iters "$JOINT2_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
-    export-v2)  # the fine-tuned pair (float32; int8 predictor) and the pairs before it (full, silhouette-only)
+    export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
+      # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_int8" --quantize int8
       sketchmesh export "$RUNS2/mesh_full" --generator-run "$RUNS2/normals16" -o "$OUT2/models_pretrained"
       sketchmesh export "$RUNS2/mesh_silhouette" --generator-run "$RUNS2/normals16" -o "$OUT2/models_silhouette"
+      sketchmesh export "$RUNS2/mesh_silhouette" --generator-run "$RUNS2/normals16" -o "$OUT2/models_silhouette_int8" \
+        --quantize int8
       sketchmesh export "$RUNS2/mesh_full" --generator-run "$RUNS2/normals8" -o "$OUT2/models_w8_pretrained" ;;
     eval-v2|eval-strong-v2|eval-side-v2|eval-gt-v2)  # clean sketches; strong augmentation; 0-degree views only;
       # ground-truth normal images (the mesh step alone). mesh_full and mesh_silhouette read the pre-trained
@@ -173,17 +176,26 @@ step() {
       [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
       sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$name" ;;
-    gallery-v2)  # the fine-tuned pair on one test shape per category, from 30 degrees and from the side
-      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" -o "$OUT2/gallery.png"
-      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_int8" --elevation 0 --azimuth 90 -o "$OUT2/gallery_side.png" ;;
+    gallery-v2)  # the bundled pair on one test shape per category, from 30 degrees and from the side
+      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_silhouette_int8" -o "$OUT2/gallery.png"
+      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_silhouette_int8" --elevation 0 --azimuth 90 \
+        -o "$OUT2/gallery_side.png" ;;
     tradeoff-v2)  # error against run time: generator width, precision and template level, in the app's engine
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-joint=$OUT2/models_fp32" \
-        --variant "w16=$OUT2/models_pretrained" --variant "w8=$OUT2/models_w8_pretrained" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-joint:int8-predictor \
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-silhouette=$OUT2/models_silhouette" \
+        --variant "w16-full=$OUT2/models_pretrained" --variant "w16-joint=$OUT2/models_fp32" \
+        --variant "w8-full=$OUT2/models_w8_pretrained" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-silhouette:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT2/tradeoff" ;;
-    ship-v2)  # the chosen pair becomes the app's bundled models
+    compare-v2)  # the app's ONNX path on the new test split: the first bundled models (from git) against the
+      # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
+      mkdir -p "$OUT2/models_v1"
+      for f in generator.onnx mesh_predictor.onnx; do git show "2e5204b:assets/models/$f" > "$OUT2/models_v1/$f"; done
+      sketchmesh eval --models "$OUT2/models_v1" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
+        --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$OUT2/compare" ;;
+    ship-v2)  # the chosen pair becomes the app's bundled models: the one that scored best from sketches
+      # (clean, strong and side views: the silhouette-only predictor with the pre-trained generator; model card)
       mkdir -p assets/models
-      cp "$OUT2/models_int8/"*.onnx assets/models/ ;;
+      cp "$OUT2/models_silhouette_int8/"*.onnx assets/models/ ;;
     docs-v2)  # the README's pictures, from the outputs above and the app itself (Xvfb when headless)
       mkdir -p docs
       cp "$OUT2/gallery.png" docs/gallery.png
@@ -194,11 +206,11 @@ step() {
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     all)
       for s in data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 \
-               eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2; do step "$s"; done ;;
+               eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 ship-v2 docs-v2 all all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2 all all-v1)" >&2
       exit 2 ;;
   esac
 }
