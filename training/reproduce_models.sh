@@ -46,12 +46,12 @@ MESH2_ITERS=${MESH2_ITERS:-6500}
 JOINT2_ITERS=${JOINT2_ITERS:-150}
 SAMPLES2=${SAMPLES2:-156}
 OUT2=${OUT2:-out/v2}
-# The bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
-# lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what is bundled.
+# The first bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
+# lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what was bundled first.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
            --predictor-local-bound "$LOCAL_BOUND" --lr-mesh 1e-4 --lr-warmup 0 --extra-views 1)
-# The bundled generator's architecture, pinned likewise: new trainings default to "resize" (reflect padding,
-# resize-convolutions), the bundled generator is the original pix2pix U-Net (zero padding, transposed convolutions).
+# The first bundled generator's architecture, pinned likewise: new trainings default to "resize" (reflect padding,
+# resize-convolutions), the first bundled generator was the original pix2pix U-Net (zero padding, transposed convolutions).
 GENERATOR=(--generator-arch pix2pix)
 
 step() {
@@ -106,14 +106,9 @@ step() {
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
     gallery)
       sketchmesh gallery --data "$DATA" --models assets/models -o "$OUT/gallery.png" ;;
-    docs)  # the README's pictures, from the outputs above and the app itself (Xvfb when headless)
+    docs)  # the README's history figure (the variants step's plot); docs-v2 makes the others
       mkdir -p docs
-      cp "$OUT/gallery.png" docs/gallery.png
-      cp "$OUT/tradeoff/tradeoff.png" docs/tradeoff.png
-      cp "$OUT/eval_clean/eval_test.png" docs/eval_test.png
-      [ -f "$OUT/variants/variants.png" ] && cp "$OUT/variants/variants.png" docs/variants.png
-      local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
-      if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
+      cp "$OUT/variants/variants.png" docs/variants.png ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
       sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 --iters 4700 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
