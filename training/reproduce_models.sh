@@ -5,7 +5,7 @@
 #
 # The bundled models (issue 16; "all" runs these in order): data-v2, then normals-v2 normals8-v2
 #   mesh-v2 silhouette-v2 (the four trainings run side by side, one thread each), then joint-v2
-#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2.
+#   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -181,6 +181,8 @@ step() {
         --variant "w8-full=$OUT2/models_w8_pretrained" \
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-silhouette:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT2/tradeoff" ;;
+    refine-v2)  # the app's outline refinement with the bundled models: IoU against run time per step count N
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --out "$OUT2/refine" ;;
     compare-v2)  # the app's ONNX path on the new test split: the first bundled models (from git) against the
       # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
       mkdir -p "$OUT2/models_v1"
@@ -197,15 +199,16 @@ step() {
       cp "$OUT2/gallery_side.png" docs/gallery_side.png
       cp "$OUT2/tradeoff/tradeoff.png" docs/tradeoff.png
       cp "$OUT2/eval_clean/eval_test.png" docs/eval_test.png
+      cp "$OUT2/refine/refine.png" docs/refine.png
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     all)
       for s in data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 \
-               eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2; do step "$s"; done ;;
+               eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 docs-v2 all all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 all all-v1)" >&2
       exit 2 ;;
   esac
 }
