@@ -202,6 +202,29 @@ step() {
       cp "$OUT2/refine/refine.png" docs/refine.png
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
+    fetch-gpu)  # what training/gpu_lease.sh brought back from a lent GPU (GPU_FILES: the folder the device tool
+      # copied $OUT to) becomes run folders RUNS2/NAME (checkpoint without optimiser state, logs, config)
+      : "${GPU_FILES:?set GPU_FILES to the folder holding the NAME.pt files and logs.tgz of gpu_lease.sh}"
+      mkdir -p "$RUNS2"
+      python3 - "$GPU_FILES" "$RUNS2" <<'EOF'
+import sys, tarfile, torch
+from pathlib import Path
+src, runs = Path(sys.argv[1]), Path(sys.argv[2])
+with tarfile.open(src / "logs.tgz") as tar:
+    for m in tar.getmembers():
+        parts = Path(m.name).parts
+        if m.isfile() and len(parts) > 2 and ".." not in parts:
+            dest = runs / Path(*parts[2:])  # runs/gpu/NAME/file -> RUNS2/NAME/file
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            dest.write_bytes(tar.extractfile(m).read())
+for f in sorted(src.glob("*.pt")):
+    it = int(torch.load(f, map_location="cpu", weights_only=True)["iteration"])
+    ck = runs / f.stem / "checkpoints"
+    ck.mkdir(parents=True, exist_ok=True)
+    (ck / f"ckpt_{it:08d}.pt").write_bytes(f.read_bytes())
+    print(f"{f.stem}: iteration {it} -> {ck}")
+EOF
+      ;;
     all)
       for s in data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 \
                eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
