@@ -415,6 +415,41 @@ def test_laplacian_basis_full_is_the_large_steps_smoother_in_the_eigenbasis():
             laplacian_basis(t.faces, v, bad, 16.0)
 
 
+def test_compact_predictor_basis_travels_with_its_weights():
+    """The eigenbasis is not portable (the icosphere's repeated eigenvalues leave LAPACK free to return any
+    basis of their eigenspaces; another machine or BLAS thread count returns another), so it is saved in
+    the state dict and a loaded predictor gives the outputs it was trained to give, whatever basis this
+    machine computes. A state dict without it (checkpoints written before) keeps the computed one."""
+    t = icosphere(2)
+    v = t.num_vertices
+    trained = CompactMeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8)
+    trained.eval()
+    # another machine's basis: the same spans, rotated inside the 3-dimensional eigenspace of modes 1-3
+    # (the coordinate functions; their eigenvalue is repeated, to rounding, by the icosphere's symmetry)
+    q, _ = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))
+    rotated = trained.basis.numpy().copy()
+    rotated[:, 1:4] = rotated[:, 1:4] @ q.astype(np.float32)
+    with torch.no_grad():
+        trained.basis.copy_(torch.from_numpy(rotated))
+    state = trained.state_dict()
+    assert "basis" in state
+    x = torch.rand(2, 3, 64, 64)
+    here = CompactMeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8)
+    here.eval()
+    assert not torch.allclose(here.basis, trained.basis)
+    here.load_state_dict(state)
+    with torch.no_grad():
+        for a, b in zip(here(x), trained(x)):
+            torch.testing.assert_close(a, b)
+    old = {k: w for k, w in state.items() if k != "basis"}
+    fresh = CompactMeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8)
+    computed = fresh.basis.clone()
+    fresh.load_state_dict(old)  # strict: no missing-key error
+    torch.testing.assert_close(fresh.basis, computed)
+    with pytest.raises(RuntimeError, match="basis"):
+        fresh.load_state_dict({**old, "basis": torch.zeros(v, 5)})
+
+
 def test_compact_predictor_offsets_are_the_basis_times_the_head_and_stay_bounded():
     p = CompactMeshPredictor(template_level=2, base_channels=4, hidden=16, latent=8, modes=20)
     p.eval()

@@ -11,6 +11,9 @@
 #                                                wait until this call has used WAIT seconds [540]
 #   bash training/gpu_lease.sh wait SECONDS      wait, print progress, copy slim checkpoints to $OUT
 #   bash training/gpu_lease.sh finish            wait for the runs to end, copy slim checkpoints to $OUT
+#   bash training/gpu_lease.sh basis             save the predictor basis this machine computes ($OUT/basis.npy):
+#                                                only for checkpoints written before the basis was stored in
+#                                                them (the issue-16 runs; fetch-gpu's GPU_BASIS)
 #
 # What comes back under $OUT: each run's newest checkpoint without optimiser state (RUN.pt, loadable by
 # `sketchmesh export` / `eval` once placed as runs/gpu/RUN/checkpoints/ckpt_N.pt; see
@@ -115,5 +118,10 @@ a = $CAL // 4; print(($CAL - a) / (r[$CAL] - r[a]))") || { tail -n 20 "/tmp/cal/
   finish)
     while pgrep -f "sketchmesh train" > /dev/null; do sleep 5; [ $(($(date +%s) - T0)) -lt 560 ] || break; done
     progress; for n in "${NAMES[@]}"; do tail -n 2 "$RUNS/$n.out" | tr '\r' '\n' | tail -n 2; done; snapshot ;;
-  *) echo "usage: $0 start MINUTES | wait SECONDS | finish" >&2; exit 2 ;;
+  basis)
+    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
+    python3 -c "
+import sys, numpy as np; from training.loop.trainer import build_models; from training.loop.config import TrainConfig
+m = build_models(TrainConfig(mode='mesh', data_dir='x', out_dir='y'))['predictor']; np.save('$OUT/basis.npy', m.basis.numpy())" ;;
+  *) echo "usage: $0 start MINUTES | wait SECONDS | finish | basis" >&2; exit 2 ;;
 esac

@@ -203,13 +203,15 @@ step() {
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     fetch-gpu)  # what training/gpu_lease.sh brought back from a lent GPU (GPU_FILES: the folder the device tool
-      # copied $OUT to) becomes run folders RUNS2/NAME (checkpoint without optimiser state, logs, config)
+      # copied $OUT to) becomes run folders RUNS2/NAME (checkpoint without optimiser state, logs, config).
+      # GPU_BASIS (optional): the predictor basis `gpu_lease.sh basis` saved on that machine, for checkpoints
+      # written before the basis was stored in them (issue 16's GPU runs; see CompactMeshPredictor.basis)
       : "${GPU_FILES:?set GPU_FILES to the folder holding the NAME.pt files and logs.tgz of gpu_lease.sh}"
       mkdir -p "$RUNS2"
-      python3 - "$GPU_FILES" "$RUNS2" <<'EOF'
-import sys, tarfile, torch
+      python3 - "$GPU_FILES" "$RUNS2" "${GPU_BASIS:-}" <<'EOF'
+import sys, tarfile, numpy as np, torch
 from pathlib import Path
-src, runs = Path(sys.argv[1]), Path(sys.argv[2])
+src, runs, basis = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3]
 with tarfile.open(src / "logs.tgz") as tar:
     for m in tar.getmembers():
         parts = Path(m.name).parts
@@ -218,10 +220,16 @@ with tarfile.open(src / "logs.tgz") as tar:
             dest.parent.mkdir(parents=True, exist_ok=True)
             dest.write_bytes(tar.extractfile(m).read())
 for f in sorted(src.glob("*.pt")):
-    it = int(torch.load(f, map_location="cpu", weights_only=True)["iteration"])
+    state = torch.load(f, map_location="cpu", weights_only=True)
+    it = int(state["iteration"])
+    pred = state["models"].get("predictor")
+    if pred is not None and "basis" not in pred:
+        if not basis:
+            sys.exit(f"{f.name} predates the stored predictor basis: set GPU_BASIS (gpu_lease.sh basis)")
+        pred["basis"] = torch.from_numpy(np.load(basis))
     ck = runs / f.stem / "checkpoints"
     ck.mkdir(parents=True, exist_ok=True)
-    (ck / f"ckpt_{it:08d}.pt").write_bytes(f.read_bytes())
+    torch.save(state, ck / f"ckpt_{it:08d}.pt")
     print(f"{f.stem}: iteration {it} -> {ck}")
 EOF
       ;;

@@ -442,8 +442,14 @@ class CompactMeshPredictor(_TemplateOffsets):
         if not 1 <= self.modes <= self.num_vertices:
             raise ValueError(f"modes must be in [0, {self.num_vertices}] (0 = all), got {modes}")
         self.local_bound = "clamp-after"
+        # Persistent: the weights are only meaningful in the basis they were trained with, and that basis
+        # is not portable. The icosphere's Laplacian has repeated eigenvalues (its symmetry), and inside a
+        # repeated eigenvalue's eigenspace LAPACK returns any orthonormal basis: a different one on
+        # another processor, or with another BLAS thread count on the same one (measured: the basis of a
+        # GPU machine's 16-thread run differs from its 1-thread one). So the basis travels with the
+        # weights, in the state dict and checkpoints; see _load_from_state_dict for older checkpoints.
         self.register_buffer("basis", torch.from_numpy(
-            laplacian_basis(np.asarray(template.faces), self.num_vertices, self.modes, self.smoothing)), persistent=False)
+            laplacian_basis(np.asarray(template.faces), self.num_vertices, self.modes, self.smoothing)))
         c = int(base_channels)
         layers: list[nn.Module] = []
         for cin, cout in ((3, c), (c, 2 * c), (2 * c, 4 * c), (4 * c, 8 * c)):
@@ -457,6 +463,16 @@ class CompactMeshPredictor(_TemplateOffsets):
         for head in (self.local_head, self.global_head):
             nn.init.normal_(head.weight, std=OUTPUT_INIT_STD)
             nn.init.zeros_(head.bias)
+
+    def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
+                              error_msgs) -> None:
+        # Checkpoints written before the basis was stored (the first and second bundled models' runs) lack
+        # it: they keep the basis computed here, which is the one they were trained with only on the
+        # machine (and BLAS thread count) that trained them.
+        if prefix + "basis" not in state_dict:
+            state_dict[prefix + "basis"] = self.basis
+        super()._load_from_state_dict(state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
+                                      error_msgs)
 
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
