@@ -6,6 +6,8 @@
 # The bundled models (issue 16; "all" runs these in order): data-v2, then normals-v2 normals8-v2
 #   mesh-v2 silhouette-v2 (the four trainings run side by side, one thread each), then joint-v2
 #   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2.
+# The third bundled models (all-gpu): trained on a lent GPU by training/gpu_lease.sh, then fetch-gpu
+#   (GPU_FILES, GPU_BASIS) and the steps from joint-v2 on, with RUNS2=runs/gpu OUT2=out/v3.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -168,7 +170,9 @@ step() {
         eval-gt-v2) extra=(--gt-normals); name=eval_gt_normals ;;
       esac
       local base=(--baseline-run "$RUNS2/mesh_silhouette")
+      [ ! -d "$RUNS2/mesh_n5e-4" ] || base+=(--baseline-run "$RUNS2/mesh_n5e-4")  # the GPU runs' normal weight 0.0005
       [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
+      [ -z "${PREV_SIL:-}" ] || base+=(--baseline-run "$PREV_SIL")  # all-gpu: the CPU-trained bundled predictor
       sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$name" ;;
     gallery-v2)  # the bundled pair on one test shape per category, from 30 degrees and from the side
@@ -187,7 +191,13 @@ step() {
       # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
       mkdir -p "$OUT2/models_v1"
       for f in generator.onnx mesh_predictor.onnx; do git show "2e5204b:assets/models/$f" > "$OUT2/models_v1/$f"; done
-      sketchmesh eval --models "$OUT2/models_v1" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
+      local prev=()
+      if [ -n "${PREV_MODELS:-}" ]; then  # all-gpu: the second bundled models too (issue 16, CPU-trained)
+        mkdir -p "$OUT2/models_v2"
+        for f in generator.onnx mesh_predictor.onnx; do git show "$PREV_MODELS:assets/models/$f" > "$OUT2/models_v2/$f"; done
+        prev=(--models "$OUT2/models_v2")
+      fi
+      sketchmesh eval --models "$OUT2/models_v1" "${prev[@]}" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
         --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$OUT2/compare" ;;
     ship-v2)  # the chosen pair becomes the app's bundled models: the one that scored best from sketches
       # (clean, strong and side views: the silhouette-only predictor with the pre-trained generator; model card)
@@ -236,10 +246,16 @@ EOF
     all)
       for s in data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 \
                eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+    all-gpu)  # the third bundled models: training/gpu_lease.sh on a lent GPU (data, the two generator widths and
+      # three predictors, side by side), then fetch-gpu and every later step here, on runs/gpu into out/v3
+      RUNS2=runs/gpu; OUT2=out/v3; PREV_MODELS=cc51aaf
+      if [ -d runs/v2/mesh_silhouette ]; then PREV_SIL=runs/v2/mesh_silhouette; fi
+      for s in fetch-gpu joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 \
+               compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 all all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu all all-gpu all-v1)" >&2
       exit 2 ;;
   esac
 }
