@@ -97,7 +97,7 @@ def run_tradeoff(
 
     Returns:
         One record per combination: label, precision, level, vertices, voxel_iou, chamfer_l1
-        (means over categories), latency_ms_p50 / p90, samples, model_mb.
+        (means over categories), latency_ms_p50 / p90, samples, model_mb (MiB, 2**20 bytes).
     """
     import tempfile
 
@@ -185,7 +185,7 @@ def run_tradeoff(
 
 
 def markdown_table(records: list[dict], bundled: str | None = None) -> str:
-    lines = ["| models | precision | level (vertices) | size MB | voxel IoU | Chamfer-L1 | latency p50 ms | p90 ms |",
+    lines = ["| models | precision | level (vertices) | size MiB | voxel IoU | Chamfer-L1 | latency p50 ms | p90 ms |",
              "|---|---|---|---:|---:|---:|---:|---:|"]
     for r in records:
         mark = " (bundled)" if bundled and _is_bundled(r, bundled) else ""
