@@ -151,6 +151,14 @@ step() {
       sketchmesh train joint --data "$DATA2" --out "$RUNS2/joint" --base-channels 16 --batch 4 \
         --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_full" --lr-mesh 1e-4 --lr-warmup 0 \
         --iters "$JOINT2_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
+    predictor-on-generated-v2)  # experiment: the silhouette-only predictor fine-tuned on the generator's own normal
+      # images (generator and discriminator frozen: learning rate 1e-12), to measure the gap between ground-truth
+      # and generated normals (joint mode, batch 8, 2 threads, 25 minutes)
+      sketchmesh train joint --data "$DATA2" --out "$RUNS2/predictor_on_generated" --base-channels 16 --batch 8 \
+        --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_silhouette" --lambda-n 0 --lr-g 1e-12 --lr-d 1e-12 \
+        --lr-mesh 2e-4 --lr-warmup 0 --iters 1200 --max-minutes 25 --threads 2 --ckpt-every 100 --val-every 0
+      sketchmesh eval "$RUNS2/predictor_on_generated" --data "$DATA2" --baseline-run "$RUNS2/mesh_silhouette" \
+        --generator-run "$RUNS2/normals16" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_predictor_on_generated" ;;
     export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
       # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
@@ -255,7 +263,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu all all-gpu all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 all all-gpu all-v1)" >&2
       exit 2 ;;
   esac
 }
