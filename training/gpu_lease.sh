@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Issue 16's long trainings on a lent GPU machine (the `device` tool; H100, 16 cores, nothing reachable
 # from it): the data-v2 dataset is rebuilt there (same seed and settings as `reproduce_models.sh data-v2`,
-# 16 workers), then the generator at widths 16 and 8 (the error-against-run-time table) and three predictors (silhouette-only; the full loss at the
-# paper's normal weight 0.002 and at 0.0005) train side by side on the one GPU, each with the recipe of
-# its v2 step and as many iterations as the lease holds (measured, not guessed: a short concurrent run
+# 16 workers), then the generator at widths 16 and 8 (the error-against-run-time table) and three
+# predictors (silhouette-only; the full loss at the paper's normal weight 0.002 and at 0.0005) train
+# side by side on the one GPU, each with the recipe of its v2 step and as many iterations as the lease holds (measured, not guessed: a short concurrent run
 # of all five sets each one's cosine schedule length).
 #
 #   bash training/gpu_lease.sh start MINUTES     set up, build the data, calibrate, launch the five runs
@@ -18,7 +18,10 @@
 # What comes back under $OUT: each run's newest checkpoint without optimiser state (RUN.pt, loadable by
 # `sketchmesh export` / `eval` once placed as runs/gpu/RUN/checkpoints/ckpt_N.pt; see
 # training/reproduce_models.sh fetch-gpu) and logs.tgz (each run's log.csv, curves, config, events).
-# Python packages the machine lacks (trimesh, manifold3d) travel as wheels in .whl/ (carry it).
+# Python packages the machine lacks (trimesh, manifold3d) travel as wheels in .whl/ (carry it), fetched
+# here for its Python 3.12: pip download --no-deps --only-binary=:all: --python-version 3.12
+#   --implementation cp --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 -d .whl
+#   trimesh==5.2.0 manifold3d==3.5.4
 set -uo pipefail
 
 DATA=${DATA:-data/proc100e4}
