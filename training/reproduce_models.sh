@@ -159,6 +159,17 @@ step() {
         --lr-mesh 2e-4 --lr-warmup 0 --iters 1200 --max-minutes 25 --threads 2 --ckpt-every 100 --val-every 0
       sketchmesh eval "$RUNS2/predictor_on_generated" --data "$DATA2" --baseline-run "$RUNS2/mesh_silhouette" \
         --generator-run "$RUNS2/normals16" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_predictor_on_generated" ;;
+    ceiling-v2)  # diagnostic: the silhouette-only predictor continued for CEIL_MINUTES [50] of wall time side by side
+      # (one thread each, cosine over 8,000 iterations from Adam 1e-3) with its 2D loss and with 3D supervision
+      # (Chamfer distance to the true surface: a diagnostic ceiling of the network, never the method), then both
+      # evaluated on ground-truth normal images: is the predictor limited by its 2D signal or by its shape space?
+      local m=${CEIL_MINUTES:-50} cont=(--data "$DATA2" --init-mesh "$RUNS2/mesh_silhouette" --lambda-n 0 --lr-mesh 1e-3
+        --iters 8000 --threads 1 --ckpt-every 250 --val-every 0 --quiet)
+      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_2d" --max-minutes "$m" &
+      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_3d" --supervision 3d --max-minutes "$m" &
+      wait
+      sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --gt-normals --baseline-run "$RUNS2/continued_3d" \
+        --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling" ;;
     export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
       # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
@@ -263,7 +274,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 all all-gpu all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 all all-gpu all-v1)" >&2
       exit 2 ;;
   esac
 }
