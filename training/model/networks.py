@@ -466,7 +466,7 @@ class CompactMeshPredictor(_TemplateOffsets):
 
     def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                               error_msgs) -> None:
-        # Checkpoints written before the basis was stored (the first and second bundled models' runs) lack
+        # Checkpoints written before the basis was stored (the second bundled models' runs, for one) lack
         # it: they keep the basis computed here, which is the one they were trained with only on the
         # machine (and BLAS thread count) that trained them.
         if prefix + "basis" not in state_dict:
