@@ -169,7 +169,9 @@ step() {
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_3d" --supervision 3d --max-minutes "$m" &
       wait
       sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --gt-normals --baseline-run "$RUNS2/continued_3d" \
-        --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling" ;;
+        --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling"
+      sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_continued_clean" ;;
     export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
       # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
