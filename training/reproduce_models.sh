@@ -8,6 +8,8 @@
 #   export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2.
 # The third bundled models (all-gpu): trained on a lent GPU by training/gpu_lease.sh, then fetch-gpu
 #   (GPU_FILES, GPU_BASIS) and the steps from joint-v2 on, with RUNS2=runs/gpu OUT2=out/v3.
+# The fourth bundled models (all-v4): the third's predictor continued on the generator's own normal images of
+#   the training sketches (generated-v4 predictor-v4), evaluated, exported and shipped into OUT4 [out/v4].
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -48,6 +50,9 @@ MESH2_ITERS=${MESH2_ITERS:-6500}
 JOINT2_ITERS=${JOINT2_ITERS:-150}
 SAMPLES2=${SAMPLES2:-156}
 OUT2=${OUT2:-out/v2}
+OUT4=${OUT4:-out/v4}
+SHIP_MODELS=${SHIP_MODELS:-$OUT2/models_silhouette_int8}  # the pair ship-v2 bundles (gallery-v2, refine-v2, docs-v2 too)
+SHIP_OUT=${SHIP_OUT:-$OUT2}  # where gallery-v2 and refine-v2 write and docs-v2 reads (with OUT2's tradeoff, eval_clean)  # the fourth models (all-v4): the third models' runs (RUNS2=runs/gpu) with the predictor continued
 # The first bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what was bundled first.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
@@ -172,6 +177,46 @@ step() {
         --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling"
       sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_continued_clean" ;;
+    generated-v4)  # the predictor's input as the app sees it: the bundled generator (the third models' fp32
+      # export of RUNS2/normals16) over the half-strength hand-drawn sketch of every training view (14 min, 2 processes)
+      [ -f "$OUT2/models_silhouette/generator.onnx" ] || step export-v2
+      sketchmesh data generated "$DATA2" --models "$OUT2/models_silhouette" --name normals16 --workers 2 ;;
+    predictor-v4)  # the third models' predictor continued (ceiling-v2's continued_2d) for V4_MINUTES [45] of wall
+      # time side by side, one thread each: on ground-truth normal images (the comparison) and on the generator's
+      # images of the training sketches (generated-v4; targets still the true images and silhouettes)
+      local m=${V4_MINUTES:-45} cont=(--data "$DATA2" --init-mesh "$RUNS2/continued_2d" --lambda-n 0 --lr-mesh 5e-4
+        --iters 8000 --threads 1 --ckpt-every 250 --val-every 0 --quiet)
+      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_true_inputs" --max-minutes "$m" &
+      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_generated_inputs" --input-normals normals16 --max-minutes "$m" &
+      wait ;;
+    eval-v4|eval-strong-v4|eval-side-v4|eval-gt-v4)  # the two against their start and the third models' predictor
+      local extra=() name=eval_clean
+      case "$1" in
+        eval-strong-v4) extra=(--augment-strength 1.0); name=eval_strong ;;
+        eval-side-v4) extra=(--elevation 0); name=eval_side ;;
+        eval-gt-v4) extra=(--gt-normals); name=eval_gt_normals ;;
+      esac
+      sketchmesh eval "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v4_true_inputs" --baseline-run "$RUNS2/continued_2d" --baseline-run "$RUNS2/mesh_silhouette" \
+        "${extra[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT4/$name" ;;
+    export-v4)  # the chosen predictor (PRED4 [v4_generated_inputs]) with the third models' generator, int8 predictor
+      local pred=${PRED4:-v4_generated_inputs}
+      sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_fp32"
+      sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_int8" --quantize int8 ;;
+    tradeoff-v4)  # error against run time in the app's engine: the fourth pair beside the third's and width 8
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v4=$OUT4/models_fp32" \
+        --variant "w16-v3=$OUT2/models_silhouette" --variant "w8-full=$OUT2/models_w8_pretrained" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v4:int8-predictor \
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT4/tradeoff" ;;
+    compare-v4)  # the app's ONNX path: the four bundled pairs in turn (from git), retrieval and the template sphere
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e; do
+        mkdir -p "$OUT4/models_$c"
+        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT4/models_$c/$f"; done
+        folders+=(--models "$OUT4/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --models "$OUT4/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
+        --threads 2 --out "$OUT4/compare" ;;
     export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
       # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
       sketchmesh export "$RUNS2/joint" -o "$OUT2/models_fp32"
@@ -197,9 +242,9 @@ step() {
       sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$name" ;;
     gallery-v2)  # the bundled pair on one test shape per category, from 30 degrees and from the side
-      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_silhouette_int8" -o "$OUT2/gallery.png"
-      sketchmesh gallery --data "$DATA2" --models "$OUT2/models_silhouette_int8" --elevation 0 --azimuth 90 \
-        -o "$OUT2/gallery_side.png" ;;
+      sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" -o "$SHIP_OUT/gallery.png"
+      sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" --elevation 0 --azimuth 90 \
+        -o "$SHIP_OUT/gallery_side.png" ;;
     tradeoff-v2)  # error against run time: generator width, precision and template level, in the app's engine
       sketchmesh bench tradeoff --data "$DATA2" --variant "w16-silhouette=$OUT2/models_silhouette" \
         --variant "w16-full=$OUT2/models_pretrained" --variant "w16-joint=$OUT2/models_fp32" \
@@ -207,7 +252,7 @@ step() {
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-silhouette:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT2/tradeoff" ;;
     refine-v2)  # the app's outline refinement with the bundled models: IoU against run time per step count N
-      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --out "$OUT2/refine" ;;
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --out "$SHIP_OUT/refine" ;;
     compare-v2)  # the app's ONNX path on the new test split: the first bundled models (from git) against the
       # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
       mkdir -p "$OUT2/models_v1"
@@ -223,14 +268,14 @@ step() {
     ship-v2)  # the chosen pair becomes the app's bundled models: the one that scored best from sketches
       # (clean, strong and side views: the silhouette-only predictor with the pre-trained generator; model card)
       mkdir -p assets/models
-      cp "$OUT2/models_silhouette_int8/"*.onnx assets/models/ ;;
+      cp "$SHIP_MODELS/"*.onnx assets/models/ ;;
     docs-v2)  # the README's pictures, from the outputs above and the app itself (Xvfb when headless)
       mkdir -p docs
-      cp "$OUT2/gallery.png" docs/gallery.png
-      cp "$OUT2/gallery_side.png" docs/gallery_side.png
-      cp "$OUT2/tradeoff/tradeoff.png" docs/tradeoff.png
-      cp "$OUT2/eval_clean/eval_test.png" docs/eval_test.png
-      cp "$OUT2/refine/refine.png" docs/refine.png
+      cp "$SHIP_OUT/gallery.png" docs/gallery.png
+      cp "$SHIP_OUT/gallery_side.png" docs/gallery_side.png
+      cp "$SHIP_OUT/tradeoff/tradeoff.png" docs/tradeoff.png
+      cp "$SHIP_OUT/eval_clean/eval_test.png" docs/eval_test.png
+      cp "$SHIP_OUT/refine/refine.png" docs/refine.png
       local shot=(sketchmesh --open assets/samples/chair_chair_00018_v3.png --screenshot docs/app.png)
       if [ -n "${DISPLAY:-}" ]; then "${shot[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${shot[@]}"; fi ;;
     fetch-gpu)  # what training/gpu_lease.sh brought back from a lent GPU (GPU_FILES: the folder the device tool
@@ -269,14 +314,21 @@ EOF
                eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-gpu)  # the third bundled models: training/gpu_lease.sh on a lent GPU (data, the two generator widths and
       # three predictors, side by side), then fetch-gpu and every later step here, on runs/gpu into out/v3
-      RUNS2=runs/gpu; OUT2=out/v3; PREV_MODELS=cc51aaf
+      RUNS2=runs/gpu; OUT2=out/v3; PREV_MODELS=cc51aaf; SHIP_MODELS=$OUT2/models_silhouette_int8; SHIP_OUT=$OUT2
       if [ -d runs/v2/mesh_silhouette ]; then PREV_SIL=runs/v2/mesh_silhouette; fi
       for s in fetch-gpu joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 \
                compare-v2 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+    all-v4)  # the fourth bundled models: the third's runs (RUNS2=runs/gpu, out/v3) with the predictor continued
+      # on the generator's images (generated-v4, predictor-v4); ceiling-v2 first makes RUNS2/continued_2d
+      RUNS2=runs/gpu; OUT2=out/v3; SHIP_MODELS=$OUT4/models_int8; SHIP_OUT=$OUT4
+      [ -d "$RUNS2/continued_2d" ] || step ceiling-v2
+      for s in generated-v4 predictor-v4 eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 \
+               gallery-v2 compare-v4 ship-v2 refine-v2; do step "$s"; done
+      step docs-v2 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 all all-gpu all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 all all-gpu all-v4 all-v1)" >&2
       exit 2 ;;
   esac
 }

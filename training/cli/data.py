@@ -95,6 +95,21 @@ def register(commands, bench) -> None:
     samples.add_argument("--augment-strength", type=unit_float, default=0.0, help="hand-drawn augmentation (default clean)")
     samples.add_argument("--seed", type=int, default=0)
     samples.set_defaults(func=cmd_samples)
+    gen = one_line_errors(actions.add_parser(
+        "generated", help="the generator's normal images of a split's sketches, as a mesh-mode training input",
+        description="Run a model folder's generator over the hand-drawn-augmented sketch of every view of a split "
+                    "(the app's engine code) and keep the 64 x 64 results in DIR/.cache/generated/NAME, for "
+                    "`sketchmesh train mesh --input-normals NAME`. Resumes where a stopped call left off."))
+    gen.add_argument("dir", help="dataset folder")
+    gen.add_argument("--models", required=True, metavar="DIR", help="ONNX model folder whose generator.onnx to run")
+    gen.add_argument("--name", required=True, help="name of the result under DIR/.cache/generated")
+    gen.add_argument("--split", default="train", choices=("train", "val", "test", "all"))
+    gen.add_argument("--augment-strength", type=unit_float, default=0.5, help="hand-drawn augmentation (default 0.5)")
+    gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--workers", type=int_in(1, 256), default=1, help="processes, one thread each (1: one, two threads)")
+    gen.add_argument("--max-shapes", type=positive_int, default=None, help="stop after this many shapes (resume later)")
+    gen.add_argument("--no-progress", action="store_true", help="no progress bar")
+    gen.set_defaults(func=cmd_generated)
 
     b = one_line_errors(bench.add_parser(
         "data", help="data generation speed: views/s per core, growth with mesh size, line-drawing share"))
@@ -174,6 +189,17 @@ def cmd_build(args: argparse.Namespace) -> int:
           f"{len(summary['failed'])} failed; {args.out} now holds {summary['shapes']} shapes / {summary['views']} views "
           f"({dt:.1f} s)")
     return 1 if summary["failed"] and summary["rendered"] == 0 else 0
+
+
+def cmd_generated(args: argparse.Namespace) -> int:
+    _require_torch()  # the dataset's mesh-array cache is built by the training package
+    from training.data.generated import build_generated
+
+    r = build_generated(args.dir, args.models, args.name, split=args.split, augment_strength=args.augment_strength,
+                        seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes)
+    print(f"{r['written']} views generated in {r['seconds']:.1f} s; {r['done']} of the {r['views']} views of the "
+          f"{args.split} split are done")
+    return 0
 
 
 def cmd_merge(args: argparse.Namespace) -> int:

@@ -608,6 +608,11 @@ class ShapeViewDataset(_DatasetBase):
         mesh_cache: where ``fields="mesh"`` reads its arrays from: ``"auto"`` / ``"disk"`` /
             ``"memory"``, the per-dataset cache of :func:`training.data.mesh_cache.open_mesh_cache`
             (decompressed once, bit-identical to the shape files), or ``"none"`` (the shape files).
+        input_normals: ``fields="mesh"`` only: the name (or folder) of a set of generated normal
+            images (:mod:`training.data.generated`); items then also hold ``input64`` (3, s, s), the
+            generator's image of the view's sketch, which a mesh-mode run feeds its predictor.
+        input_share: share of items whose ``input64`` is the generated image (the others get the
+            true normal image), fixed per (seed, item); in (0, 1].
 
     ``__getitem__(i)`` returns a dict of torch tensors (NCHW without N, float32 in [0, 1]):
     ``sketch`` (1, S, S) 1 = ink; ``normals`` (3, S, S); ``silhouette`` (1, S, S);
@@ -626,7 +631,8 @@ class ShapeViewDataset(_DatasetBase):
 
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
                  seed: int = 0, categories: Sequence[str] | None = None, shape_ids: Sequence[str] | None = None,
-                 fields: str = "all", mesh_cache: str = "auto") -> None:
+                 fields: str = "all", mesh_cache: str = "auto", input_normals: str | None = None,
+                 input_share: float = 1.0) -> None:
         self.root = Path(root)
         if split not in ("train", "val", "test", "all"):
             raise DatasetError(f"split must be 'train', 'val', 'test' or 'all', got {split!r}")
@@ -674,6 +680,19 @@ class ShapeViewDataset(_DatasetBase):
             from training.data.mesh_cache import open_mesh_cache
 
             self._arrays = open_mesh_cache(self.root, self.manifest, mesh_cache)
+        self._inputs = None  # generated predictor inputs (fields "mesh")
+        self.input_share = float(input_share)
+        if input_normals:
+            if self._arrays is None:
+                raise DatasetError("input_normals needs fields='mesh' and the mesh-array cache (its rows index them)")
+            if not 0.0 < self.input_share <= 1.0:
+                raise DatasetError(f"input_share must be in (0, 1], got {input_share}")
+            from training.data.generated import open_generated
+
+            self._inputs = open_generated(self.root, input_normals)
+            if self._inputs.normals64.shape[0] != self._arrays.normals64.shape[0]:
+                raise DatasetError(f"{self._inputs.folder} has {self._inputs.normals64.shape[0]} rows, the dataset "
+                                   f"{self._arrays.normals64.shape[0]}: it was built for another state of {self.root}")
 
     def __len__(self) -> int:
         return len(self._items)
@@ -747,8 +766,24 @@ class ShapeViewDataset(_DatasetBase):
             "other_silhouette64": torch.from_numpy(a.silhouette64[others].astype(np.float32)),
             "other_cameras": torch.from_numpy(a.cameras[others].astype(np.float64)),
         }
+        if self._inputs is not None:
+            batch["input64"] = torch.from_numpy(self._input_rows(idx, rows))
         return [{**{k: v[b] for k, v in batch.items()}, "category": r["category"], "shape_id": r["shape_id"],
                  "view": int(views[b])} for b, r in enumerate(recs)]
+
+    def uses_generated(self, i: int) -> bool:
+        """Whether item ``i`` reads the generated input image (see ``input_share``)."""
+        if self._inputs is None:
+            return False
+        return self.input_share >= 1.0 or bool(np.random.default_rng([self.seed, 104729, i]).random() < self.input_share)
+
+    def _input_rows(self, idx: Sequence[int], rows: np.ndarray) -> np.ndarray:
+        """(B, 3, s, s) float32 predictor inputs of items ``idx`` (mesh-cache rows ``rows``)."""
+        out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
+        pick = np.array([self.uses_generated(i) for i in idx], bool)
+        if pick.any():
+            out[pick] = self._inputs.rows(rows[pick])
+        return out
 
     def item(self, i: int, fields: str = "all") -> dict:
         """Item ``i`` with ``fields`` ("all" or "mesh"; see the class docstring)."""
@@ -766,6 +801,10 @@ class ShapeViewDataset(_DatasetBase):
                 a = self._arrays
                 row = a.row(rec["file"])
                 n64, s64, cams, v, others = a.normals64, a.silhouette64, a.cameras, row + v, row + others
+                if self._inputs is not None:
+                    inp = torch.from_numpy(self._input_rows([i], np.array([v], np.int64))[0])
+                    return {**_mesh_fields(torch, n64, s64, cams, v, others), "input64": inp,
+                            "category": rec["category"], "shape_id": rec["shape_id"], "view": int(self._items[i][1])}
             else:
                 p = self._path(rec)
                 n64, s64, cams = (self._cache.get(p, k) for k in ("normals64", "silhouette64", "cameras"))

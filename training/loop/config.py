@@ -87,6 +87,12 @@ class TrainConfig:
             Chamfer-L1 distance to points on the true surface (plus the edge and dihedral terms), which
             says whether a limit lies in the network or in the 2D signal. Mesh mode only.
         lambda_chamfer: weight of the Chamfer term with ``supervision="3d"``.
+        input_normals: mesh mode: the predictor's input is, instead of the ground-truth normal image,
+            the generator's normal image of the view's hand-drawn sketch, from the set of that name
+            built by ``sketchmesh data generated`` (:mod:`training.data.generated`); what the app
+            feeds it. The targets stay the true normal images and silhouettes. "" (default): off.
+        input_share: with ``input_normals``, the share of training samples that read the generated
+            image (the others read the true one), fixed per sample; in (0, 1], default 1.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
         edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
@@ -147,6 +153,8 @@ class TrainConfig:
     extra_views: int = 3
     supervision: str = "2d"
     lambda_chamfer: float = 10.0
+    input_normals: str = ""
+    input_share: float = 1.0
     sketch_size: int = 256
     render_size: int = 64
     delta: float = 1.0
@@ -188,6 +196,10 @@ class TrainConfig:
             problems.append(f"supervision must be '2d' or '3d', got {self.supervision!r}")
         elif self.supervision == "3d" and self.mode != "mesh":
             problems.append(f"supervision '3d' (the diagnostic ceiling) is for mesh mode only, not {self.mode!r}")
+        if self.input_normals and self.mode != "mesh":
+            problems.append(f"input_normals (generated predictor inputs) is for mesh mode only, not {self.mode!r}")
+        if not 0 < float(self.input_share) <= 1:
+            problems.append(f"input_share must be in (0, 1], got {self.input_share}")
         if self.silhouette not in ("eq1", "soft"):
             problems.append(f"silhouette must be 'eq1' or 'soft', got {self.silhouette!r}")
         if self.lr_schedule not in ("constant", "cosine"):

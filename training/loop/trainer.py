@@ -220,9 +220,11 @@ def make_dataset(cfg: TrainConfig, split: str, fields: str = "all"):
     from training.data.dataset import ShapeViewDataset
 
     try:
+        generated = cfg.input_normals if (split == "train" and fields == "mesh") else None
         return ShapeViewDataset(
             root, split, extra_views=cfg.extra_views, augment_strength=cfg.augment_strength if split == "train" else 0.0,
             seed=cfg.seed, categories=list(cfg.categories) or None, fields=fields,
+            input_normals=generated or None, input_share=cfg.input_share,
         )
     except SketchmeshError:
         raise
@@ -594,7 +596,10 @@ class Trainer:
             terms.update(d_loss=d_loss, g_adv=g_adv, g_global=g_global, g_local=g_local, g_total=g_total)
         if cfg.uses_predictor:
             P = self.wrapped["predictor"]
-            inp = downsample_normals(fake, cfg.render_size) if cfg.mode == "joint" else batch["normals64"]
+            if cfg.mode == "joint":
+                inp = downsample_normals(fake, cfg.render_size)
+            else:  # the generated image where the run reads one (input_normals), else the true one
+                inp = batch.get("input64", batch["normals64"])
             local, glob = P(inp)
             verts = _unwrap(P).vertices(local, glob)
             if cfg.supervision == "3d" and bool(torch.isfinite(verts.detach()).all()):

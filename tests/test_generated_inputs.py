@@ -1,0 +1,166 @@
+"""Generated predictor inputs (training.data.generated): what is stored, resuming, and training on them."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from engine.pipeline import SketchEngine, downsample_normals  # noqa: E402
+from training.data.augment import render_sketch  # noqa: E402
+from training.data.dataset import DatasetError, ShapeViewDataset  # noqa: E402
+from training.data.generated import ROW_SEED, build_generated, generated_dir, open_generated  # noqa: E402
+from training.data.mesh_cache import open_mesh_cache  # noqa: E402
+from training.data.render import view_polylines  # noqa: E402
+from training.loop.config import TrainConfig  # noqa: E402
+from training.loop.trainer import Trainer, make_dataset  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from onnx_fixtures import write_fixture_models  # noqa: E402
+from synthetic_data import write_synthetic_dataset  # noqa: E402
+
+TINY = dict(batch=3, predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2, extra_views=1,
+            log_every=1, val_every=0, ckpt_every=0, plot_every=0, device="cpu", lambda_n=0.002)
+torch.set_num_threads(2)
+
+
+def _with_strokes(root: Path) -> None:
+    """Give every view of every shape file one stroke (the synthetic files have none), so sketches differ per view."""
+    for f in sorted(root.glob("shapes/*/*.npz")):
+        with np.load(f) as z:
+            arrays = {k: z[k] for k in z.files}
+        n = arrays["sketch"].shape[0]
+        pts = np.array([[[40.0 + 30 * v, 60.0], [200.0, 90.0 + 25 * v]] for v in range(n)]).reshape(-1, 2)
+        arrays["poly_points"] = pts.astype(np.float32)
+        arrays["poly_offsets"] = np.arange(0, 2 * n + 1, 2, dtype=np.int64)
+        arrays["poly_kinds"] = np.zeros(n, np.int8)
+        arrays["view_poly_offsets"] = np.arange(n + 1, dtype=np.int64)
+        np.savez_compressed(f, **arrays)
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    base = tmp_path_factory.mktemp("gen")
+    data = write_synthetic_dataset(base / "data", splits=("train", "train", "val"), views=3)
+    _with_strokes(data)
+    from training.data.dataset import write_manifest
+
+    write_manifest(data)
+    return data, write_fixture_models(base / "models", level=2)
+
+
+def test_stored_rows_are_the_app_engines_normals_of_the_augmented_sketch(setup):
+    """Row r holds what the app's engine draws from view r's sketch, area-averaged to 64; only the split's rows."""
+    data, models = setup
+    r = build_generated(data, models, "fx", split="train", augment_strength=0.7, seed=3, progress=False)
+    assert r["written"] == r["done"] == r["views"] == 12  # 2 categories x 2 train shapes x 3 views
+    g = open_generated(data, "fx")
+    arrays = open_mesh_cache(data)
+    engine = SketchEngine(models, threads=1)
+    engine.load()
+    manifest = json.loads((data / "manifest.json").read_text())
+    for s in manifest["shapes"]:
+        first, nv = arrays.rows[s["file"]]
+        assert bool(g.done[first:first + nv].all()) == (s["split"] == "train")
+        if s["split"] != "train":
+            with pytest.raises(DatasetError, match="was not generated"):
+                g.rows(np.array([first]))
+            continue
+        with np.load(data / s["file"]) as z:
+            polys = {k: z[k] for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+        for v in range(nv):
+            sketch = render_sketch(view_polylines(polys, v), 256, 0.7, [3, ROW_SEED, first + v])
+            assert sketch.max() > 0.5  # a stroke was drawn
+            x = sketch[None, None].astype(np.float32)
+            (normals,) = engine._generator.session.run(None, {engine._generator.input_name: x})
+            want = downsample_normals(np.clip(normals, 0, 1))[0]
+            got = g.rows(np.array([first + v]))[0]
+            np.testing.assert_allclose(got, want, atol=2e-3)  # float16 storage
+    assert not np.allclose(g.rows(np.array([0])), g.rows(np.array([1])))  # views differ
+
+
+def test_a_stopped_build_resumes_and_other_settings_are_refused(setup):
+    data, models = setup
+    first = build_generated(data, models, "resume", max_shapes=1, progress=False)
+    assert first["written"] == 3 and first["done"] == 3
+    rest = build_generated(data, models, "resume", progress=False)
+    assert rest["written"] == 9 and rest["done"] == 12
+    again = build_generated(data, models, "resume", progress=False)
+    assert again["written"] == 0
+    whole = build_generated(data, models, "whole", progress=False)
+    a, b = open_generated(data, "resume"), open_generated(data, "whole")
+    np.testing.assert_array_equal(a.normals64[a.done], b.normals64[b.done])
+    with pytest.raises(DatasetError, match="other seed"):
+        build_generated(data, models, "resume", seed=1, progress=False)
+    with pytest.raises(DatasetError, match="plain folder name"):
+        generated_dir(data, "../x")
+    assert whole["done"] == 12
+
+
+def test_dataset_items_carry_the_generated_input_and_keep_true_targets(setup):
+    data, models = setup
+    build_generated(data, models, "items", progress=False)
+    g = open_generated(data, "items")
+    full = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="items")
+    plain = ShapeViewDataset(data, "train", extra_views=1, fields="mesh")
+    rows = [full._arrays.row(full._shapes[si]["file"]) + v for si, v in full._items]
+    batch = full.__getitems__(list(range(len(full))))
+    for i, item in enumerate(batch):
+        np.testing.assert_array_equal(item["input64"].numpy(), g.rows(np.array([rows[i]]))[0])
+        np.testing.assert_array_equal(item["normals64"].numpy(), plain[i]["normals64"].numpy())  # the target
+        np.testing.assert_array_equal(full[i]["input64"].numpy(), item["input64"].numpy())
+    half = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="items", input_share=0.5, seed=1)
+    picked = [half.uses_generated(i) for i in range(len(half))]
+    assert 0 < sum(picked) < len(half)
+    for i, item in enumerate(half.__getitems__(list(range(len(half))))):
+        want = g.rows(np.array([rows[i]]))[0] if picked[i] else item["normals64"].numpy()
+        np.testing.assert_array_equal(item["input64"].numpy(), want)
+    with pytest.raises(DatasetError, match="no generated normals 'nope'"):
+        ShapeViewDataset(data, "train", fields="mesh", input_normals="nope")
+    with pytest.raises(DatasetError, match="needs fields='mesh'"):
+        ShapeViewDataset(data, "train", input_normals="items")
+    with pytest.raises(DatasetError, match="was not generated"):  # the val split was not built
+        ShapeViewDataset(data, "val", extra_views=1, fields="mesh", input_normals="items").__getitems__([0])
+
+
+def test_mesh_training_reads_the_generated_input(setup, tmp_path, monkeypatch):
+    """With generated inputs equal to the true images a run is the plain run; with other inputs it differs."""
+    data, models = setup
+    build_generated(data, models, "train_in", progress=False)
+    cfg = TrainConfig(mode="mesh", data_dir=str(data), iters=2, **TINY)
+    plain = Trainer(cfg.replace(out_dir=str(tmp_path / "plain")), progress=False)
+    plain.run()
+    gen = Trainer(cfg.replace(out_dir=str(tmp_path / "gen"), input_normals="train_in"), progress=False)
+    assert gen.train_set._inputs is not None
+    assert make_dataset(gen.cfg, "val", "mesh")._inputs is None  # validation reads the true images
+    gen.run()
+    a, b = plain.models["predictor"].state_dict(), gen.models["predictor"].state_dict()
+    assert not all(torch.equal(a[k], b[k]) for k in a)
+    # the same run with the generated rows replaced by the true images is the plain run, bit for bit
+    g = open_generated(data, "train_in")
+    arrays = open_mesh_cache(data)
+    monkeypatch.setattr(type(g), "rows", lambda self, rows: np.ascontiguousarray(
+        arrays.normals64[np.asarray(rows)].transpose(0, 3, 1, 2), np.float32))
+    same = Trainer(cfg.replace(out_dir=str(tmp_path / "same"), input_normals="train_in"), progress=False)
+    same.run()
+    c = same.models["predictor"].state_dict()
+    assert all(torch.equal(a[k], c[k]) for k in a)
+
+
+def test_config_and_cli_errors_are_one_line(setup, tmp_path):
+    data, _ = setup
+    with pytest.raises(ValueError, match="input_normals .* mesh mode only"):
+        TrainConfig(mode="normals", data_dir=str(data), input_normals="x")
+    with pytest.raises(ValueError, match="input_share must be in"):
+        TrainConfig(mode="mesh", data_dir=str(data), input_normals="x", input_share=0.0)
+    cli = [sys.executable, "-m", "sketchmesh", "data", "generated", str(data), "--name", "cli"]
+    r = subprocess.run([*cli, "--models", str(tmp_path / "missing")], capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and "Traceback" not in r.stderr and "does not exist" in r.stderr
+    r = subprocess.run([*cli, "--models", str(tmp_path), "--workers", "0"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "--workers" in r.stderr
