@@ -189,6 +189,11 @@ step() {
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_true_inputs" --max-minutes "$m" &
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_generated_inputs" --input-normals normals16 --max-minutes "$m" &
       wait ;;
+    predictor-v4-more)  # the winner of predictor-v4 (generated inputs: +0.036 over true inputs from clean sketches)
+      # continued on the same generated inputs for V4B_MINUTES [40] more, alone on two threads
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_inputs" --input-normals normals16 \
+        --lambda-n 0 --lr-mesh 5e-4 --iters 9000 --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --out "$RUNS2/v4_generated_more" --max-minutes "${V4B_MINUTES:-40}" ;;
     eval-v4|eval-strong-v4|eval-side-v4|eval-gt-v4)  # the two against their start and the third models' predictor
       local extra=() name=eval_clean
       case "$1" in
@@ -196,11 +201,13 @@ step() {
         eval-side-v4) extra=(--elevation 0); name=eval_side ;;
         eval-gt-v4) extra=(--gt-normals); name=eval_gt_normals ;;
       esac
-      sketchmesh eval "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      local more=()  # predictor-v4-more's run first where it exists
+      [ ! -d "$RUNS2/v4_generated_more" ] || more=("$RUNS2/v4_generated_more" --baseline-run)
+      sketchmesh eval "${more[@]}" "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_true_inputs" --baseline-run "$RUNS2/continued_2d" --baseline-run "$RUNS2/mesh_silhouette" \
         "${extra[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT4/$name" ;;
-    export-v4)  # the chosen predictor (PRED4 [v4_generated_inputs]) with the third models' generator, int8 predictor
-      local pred=${PRED4:-v4_generated_inputs}
+    export-v4)  # the chosen predictor (PRED4 [v4_generated_more]) with the third models' generator, int8 predictor
+      local pred=${PRED4:-v4_generated_more}
       sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_fp32"
       sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_int8" --quantize int8 ;;
     tradeoff-v4)  # error against run time in the app's engine: the fourth pair beside the third's and width 8
@@ -322,13 +329,13 @@ EOF
       # on the generator's images (generated-v4, predictor-v4); ceiling-v2 first makes RUNS2/continued_2d
       RUNS2=runs/gpu; OUT2=out/v3; SHIP_MODELS=$OUT4/models_int8; SHIP_OUT=$OUT4
       [ -d "$RUNS2/continued_2d" ] || step ceiling-v2
-      for s in generated-v4 predictor-v4 eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 \
+      for s in generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 \
                gallery-v2 compare-v4 ship-v2 refine-v2; do step "$s"; done
       step docs-v2 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 all all-gpu all-v4 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 all all-gpu all-v4 all-v1)" >&2
       exit 2 ;;
   esac
 }
