@@ -61,6 +61,15 @@ PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 5
 # resize-convolutions), the first bundled generator was the original pix2pix U-Net (zero padding, transposed convolutions).
 GENERATOR=(--generator-arch pix2pix)
 
+eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
+  case "$1" in
+    eval-strong-*) EVAL_EXTRA=(--augment-strength 1.0); EVAL_NAME=eval_strong ;;
+    eval-side-*) EVAL_EXTRA=(--elevation 0); EVAL_NAME=eval_side ;;
+    eval-gt-*) EVAL_EXTRA=(--gt-normals); EVAL_NAME=eval_gt_normals ;;
+    *) EVAL_EXTRA=(); EVAL_NAME=eval_clean ;;
+  esac
+}
+
 step() {
   case "$1" in
     data)
@@ -195,17 +204,12 @@ step() {
         --lambda-n 0 --lr-mesh 5e-4 --iters 9000 --threads 2 --ckpt-every 250 --val-every 0 --quiet \
         --out "$RUNS2/v4_generated_more" --max-minutes "${V4B_MINUTES:-40}" ;;
     eval-v4|eval-strong-v4|eval-side-v4|eval-gt-v4)  # the two against their start and the third models' predictor
-      local extra=() name=eval_clean
-      case "$1" in
-        eval-strong-v4) extra=(--augment-strength 1.0); name=eval_strong ;;
-        eval-side-v4) extra=(--elevation 0); name=eval_side ;;
-        eval-gt-v4) extra=(--gt-normals); name=eval_gt_normals ;;
-      esac
+      eval_case "$1"
       local more=()  # predictor-v4-more's run first where it exists
       [ ! -d "$RUNS2/v4_generated_more" ] || more=("$RUNS2/v4_generated_more" --baseline-run)
       sketchmesh eval "${more[@]}" "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_true_inputs" --baseline-run "$RUNS2/continued_2d" --baseline-run "$RUNS2/mesh_silhouette" \
-        "${extra[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT4/$name" ;;
+        "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT4/$EVAL_NAME" ;;
     export-v4)  # the chosen predictor (PRED4 [v4_generated_more]) with the third models' generator, int8 predictor
       local pred=${PRED4:-v4_generated_more}
       sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_fp32"
@@ -236,18 +240,13 @@ step() {
     eval-v2|eval-strong-v2|eval-side-v2|eval-gt-v2)  # clean sketches; strong augmentation; 0-degree views only;
       # ground-truth normal images (the mesh step alone). mesh_full and mesh_silhouette read the pre-trained
       # generator's normal images, joint its own.
-      local extra=() name=eval_clean
-      case "$1" in
-        eval-strong-v2) extra=(--augment-strength 1.0); name=eval_strong ;;
-        eval-side-v2) extra=(--elevation 0); name=eval_side ;;
-        eval-gt-v2) extra=(--gt-normals); name=eval_gt_normals ;;
-      esac
+      eval_case "$1"
       local base=(--baseline-run "$RUNS2/mesh_silhouette")
       [ ! -d "$RUNS2/mesh_n5e-4" ] || base+=(--baseline-run "$RUNS2/mesh_n5e-4")  # the GPU runs' normal weight 0.0005
       [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
       [ -z "${PREV_SIL:-}" ] || base+=(--baseline-run "$PREV_SIL")  # all-gpu: the CPU-trained bundled predictor
-      sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${extra[@]}" \
-        --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$name" ;;
+      sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$EVAL_NAME" ;;
     gallery-v2)  # the bundled pair on one test shape per category, from 30 degrees and from the side
       sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" -o "$SHIP_OUT/gallery.png"
       sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" --elevation 0 --azimuth 90 \
