@@ -88,8 +88,10 @@ class GeneratedNormals:
 
 def open_generated(root: str | os.PathLike, name: str) -> GeneratedNormals:
     """The generated inputs ``name`` of dataset ``root`` (or ``name`` as a folder path)."""
-    folder = Path(name) if Path(name).is_dir() and not (Path(root) / ".cache" / GENERATED_DIR / name).is_dir() \
-        else generated_dir(root, name)
+    if "/" in name and Path(name).is_dir():  # a folder given by its path
+        folder = Path(name)
+    else:
+        folder = generated_dir(root, name)
     if not folder.is_dir():
         raise DatasetError(f"no generated normals {name!r} in {root} (build them with "
                            f"`sketchmesh data generated {root} --models DIR --name {name}`)")
