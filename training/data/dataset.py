@@ -779,8 +779,10 @@ class ShapeViewDataset(_DatasetBase):
 
     def _input_rows(self, idx: Sequence[int], rows: np.ndarray) -> np.ndarray:
         """(B, 3, s, s) float32 predictor inputs of items ``idx`` (mesh-cache rows ``rows``)."""
-        out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
         pick = np.array([self.uses_generated(i) for i in idx], bool)
+        if pick.all():  # the default (input_share 1): no true image is read
+            return self._inputs.rows(rows)
+        out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
         if pick.any():
             out[pick] = self._inputs.rows(rows[pick])
         return out
@@ -797,18 +799,17 @@ class ShapeViewDataset(_DatasetBase):
         rec = self._shapes[si]
         others = self.other_views(i)
         if fields == "mesh":
+            extra = {}
             if self._arrays is not None:
                 a = self._arrays
                 row = a.row(rec["file"])
                 n64, s64, cams, v, others = a.normals64, a.silhouette64, a.cameras, row + v, row + others
                 if self._inputs is not None:
-                    inp = torch.from_numpy(self._input_rows([i], np.array([v], np.int64))[0])
-                    return {**_mesh_fields(torch, n64, s64, cams, v, others), "input64": inp,
-                            "category": rec["category"], "shape_id": rec["shape_id"], "view": int(self._items[i][1])}
+                    extra["input64"] = torch.from_numpy(self._input_rows([i], np.array([v], np.int64))[0])
             else:
                 p = self._path(rec)
                 n64, s64, cams = (self._cache.get(p, k) for k in ("normals64", "silhouette64", "cameras"))
-            return {**_mesh_fields(torch, n64, s64, cams, v, others), "category": rec["category"],
+            return {**_mesh_fields(torch, n64, s64, cams, v, others), **extra, "category": rec["category"],
                     "shape_id": rec["shape_id"], "view": int(self._items[i][1])}
         p = self._path(rec)
         get = self._cache.get

@@ -19,6 +19,7 @@ seed or dataset state is refused with a message naming the difference.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import time
@@ -51,8 +52,6 @@ def _sha256(path: Path) -> str:
 
 
 def _save_done(folder: Path, done: np.ndarray) -> None:
-    import io
-
     buf = io.BytesIO()
     np.save(buf, done)
     atomic_write_bytes(folder / "done.npy", buf.getvalue())

@@ -220,11 +220,11 @@ def make_dataset(cfg: TrainConfig, split: str, fields: str = "all"):
     from training.data.dataset import ShapeViewDataset
 
     try:
-        generated = cfg.input_normals if (split == "train" and fields == "mesh") else None
+        generated = split == "train" and fields == "mesh"  # validation reads the true images
         return ShapeViewDataset(
             root, split, extra_views=cfg.extra_views, augment_strength=cfg.augment_strength if split == "train" else 0.0,
             seed=cfg.seed, categories=list(cfg.categories) or None, fields=fields,
-            input_normals=generated or None, input_share=cfg.input_share,
+            input_normals=cfg.input_normals if generated else None, input_share=cfg.input_share,
         )
     except SketchmeshError:
         raise
