@@ -129,6 +129,34 @@ def test_dataset_items_carry_the_generated_input_and_keep_true_targets(setup):
         ShapeViewDataset(data, "val", extra_views=1, fields="mesh", input_normals="items").__getitems__([0])
 
 
+def test_several_sets_make_every_view_set_pair(setup):
+    """Two sets (other seeds): item i is view i % V with set i // V's input; targets stay the view's true images."""
+    data, models = setup
+    build_generated(data, models, "pair0", seed=0, progress=False)
+    build_generated(data, models, "pair1", seed=1, augment_strength=1.0, progress=False)
+    sets = [open_generated(data, n) for n in ("pair0", "pair1")]
+    one = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="pair0")
+    both = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="pair0,pair1")
+    listed = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals=["pair0", "pair1"])
+    V = len(one)
+    assert len(both) == len(listed) == 2 * V
+    rows = [one._arrays.row(one._shapes[si]["file"]) + v for si, v in one._items]
+    assert not np.array_equal(sets[0].rows(np.array(rows)), sets[1].rows(np.array(rows)))  # the sets differ
+    batch = both.__getitems__(list(range(2 * V)))
+    for i, item in enumerate(batch):
+        k, j = divmod(i, V)
+        np.testing.assert_array_equal(item["input64"].numpy(), sets[k].rows(np.array([rows[j]]))[0])
+        np.testing.assert_array_equal(item["normals64"].numpy(), one[j]["normals64"].numpy())
+        assert (item["shape_id"], item["view"]) == (one[j]["shape_id"], one[j]["view"])
+        np.testing.assert_array_equal(both[i]["input64"].numpy(), item["input64"].numpy())
+        np.testing.assert_array_equal(listed[i]["input64"].numpy(), item["input64"].numpy())
+    for bad in ("pair0,pair0", "pair0,"):
+        with pytest.raises(DatasetError, match="distinct sets"):
+            ShapeViewDataset(data, "train", fields="mesh", input_normals=bad)
+    with pytest.raises(DatasetError, match="no generated normals 'nope'"):
+        ShapeViewDataset(data, "train", fields="mesh", input_normals="pair0,nope")
+
+
 def test_mesh_training_reads_the_generated_input(setup, tmp_path, monkeypatch):
     """With generated inputs equal to the true images a run is the plain run; with other inputs it differs."""
     data, models = setup

@@ -611,6 +611,9 @@ class ShapeViewDataset(_DatasetBase):
         input_normals: ``fields="mesh"`` only: the name (or folder) of a set of generated normal
             images (:mod:`training.data.generated`); items then also hold ``input64`` (3, s, s), the
             generator's image of the view's sketch, which a mesh-mode run feeds its predictor.
+            Several sets (a sequence, or names joined by commas; e.g. other augmentation seeds)
+            make the dataset every (view, set) pair: item ``i`` is view ``i % V`` with the input
+            of set ``i // V`` (V views), so an epoch shows each view once per set.
         input_share: share of items whose ``input64`` is the generated image (the others get the
             true normal image), fixed per (seed, item); in (0, 1].
 
@@ -631,7 +634,7 @@ class ShapeViewDataset(_DatasetBase):
 
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
                  seed: int = 0, categories: Sequence[str] | None = None, shape_ids: Sequence[str] | None = None,
-                 fields: str = "all", mesh_cache: str = "auto", input_normals: str | None = None,
+                 fields: str = "all", mesh_cache: str = "auto", input_normals: str | Sequence[str] | None = None,
                  input_share: float = 1.0) -> None:
         self.root = Path(root)
         if split not in ("train", "val", "test", "all"):
@@ -689,10 +692,17 @@ class ShapeViewDataset(_DatasetBase):
                 raise DatasetError(f"input_share must be in (0, 1], got {input_share}")
             from training.data.generated import open_generated
 
-            self._inputs = open_generated(self.root, input_normals)
-            if self._inputs.normals64.shape[0] != self._arrays.normals64.shape[0]:
-                raise DatasetError(f"{self._inputs.folder} has {self._inputs.normals64.shape[0]} rows, the dataset "
-                                   f"{self._arrays.normals64.shape[0]}: it was built for another state of {self.root}")
+            names = input_normals.split(",") if isinstance(input_normals, str) else list(input_normals)
+            names = [n.strip() for n in names]
+            if not all(names) or len(set(names)) != len(names):
+                raise DatasetError(f"input_normals must name distinct sets, got {input_normals!r}")
+            self._inputs = [open_generated(self.root, n) for n in names]
+            for g in self._inputs:
+                if g.normals64.shape[0] != self._arrays.normals64.shape[0]:
+                    raise DatasetError(f"{g.folder} has {g.normals64.shape[0]} rows, the dataset "
+                                       f"{self._arrays.normals64.shape[0]}: it was built for another state of {self.root}")
+            self._views = len(self._items)  # item i: view i % V with the input of set i // V
+            self._items = self._items * len(self._inputs)
 
     def __len__(self) -> int:
         return len(self._items)
@@ -780,11 +790,14 @@ class ShapeViewDataset(_DatasetBase):
     def _input_rows(self, idx: Sequence[int], rows: np.ndarray) -> np.ndarray:
         """(B, 3, s, s) float32 predictor inputs of items ``idx`` (mesh-cache rows ``rows``)."""
         pick = np.array([self.uses_generated(i) for i in idx], bool)
-        if pick.all():  # the default (input_share 1): no true image is read
-            return self._inputs.rows(rows)
+        sets = np.asarray(idx, np.int64) // self._views
+        if pick.all() and len(self._inputs) == 1:  # the default (one set, input_share 1): no true image is read
+            return self._inputs[0].rows(rows)
         out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
-        if pick.any():
-            out[pick] = self._inputs.rows(rows[pick])
+        for k, g in enumerate(self._inputs):
+            sel = pick & (sets == k)
+            if sel.any():
+                out[sel] = g.rows(rows[sel])
         return out
 
     def item(self, i: int, fields: str = "all") -> dict:

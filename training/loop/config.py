@@ -90,7 +90,9 @@ class TrainConfig:
         input_normals: mesh mode: the predictor's input is, instead of the ground-truth normal image,
             the generator's normal image of the view's hand-drawn sketch, from the set of that name
             built by ``sketchmesh data generated`` (:mod:`training.data.generated`); what the app
-            feeds it. The targets stay the true normal images and silhouettes. "" (default): off.
+            feeds it. The targets stay the true normal images and silhouettes. Several sets joined
+            by commas (e.g. other augmentation seeds): every (view, set) pair is a training item.
+            "" (default): off.
         input_share: with ``input_normals``, the share of training samples that read the generated
             image (the others read the true one), fixed per sample; in (0, 1], default 1.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
