@@ -470,3 +470,41 @@ def test_compact_predictor_offsets_are_the_basis_times_the_head_and_stay_bounded
     cfg_bad = dict(predictor_arch="big")
     with pytest.raises(ValueError, match="predictor_arch"):
         TrainConfig(**cfg_bad)
+
+
+def test_widened_compact_predictor_computes_the_same_function_and_every_new_weight_learns():
+    torch.manual_seed(0)
+    small = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16)
+    with torch.no_grad():  # a trained-looking predictor: non-zero heads, BatchNorm statistics off their defaults
+        for m in small.modules():
+            if isinstance(m, torch.nn.Linear):
+                m.weight.normal_(0, 0.3)
+                m.bias.normal_(0, 0.1)
+            if isinstance(m, torch.nn.BatchNorm2d):
+                m.running_mean.normal_(0, 0.1)
+                m.running_var.uniform_(0.5, 2.0)
+    big = CompactMeshPredictor(2, base_channels=8, hidden=48, latent=24)
+    assert big.load_widened(small.state_dict()) == (16, 32)
+    x = torch.rand(3, 3, 64, 64)
+    for mode in ("eval", "train"):  # running statistics and batch statistics alike
+        getattr(small, mode)(), getattr(big, mode)()
+        (ls, gs), (lb, gb) = small(x), big(x)
+        torch.testing.assert_close(lb, ls, rtol=1e-5, atol=1e-6)
+        torch.testing.assert_close(gb, gs, rtol=1e-5, atol=1e-6)
+    fc = big.encoder[len(big.encoder) - 2]
+    opt = torch.optim.SGD(big.parameters(), lr=0.1)
+    for step in range(2):
+        opt.zero_grad()
+        local, glob = big(x)
+        (local.square().sum() + glob.sum()).backward()
+        # the zero blocks get a gradient at once; the new code units' inputs once those blocks moved
+        assert big.decoder[0].weight.grad[:32, 16:].abs().sum() > 0  # new code units -> old hidden units
+        assert big.local_head.weight.grad[:, 32:].abs().sum() > 0  # new hidden units -> offsets
+        assert (fc.weight.grad[16:].abs().sum() > 0) == (step == 1)
+        opt.step()
+    with pytest.raises(ValueError, match="at least the old"):
+        CompactMeshPredictor(2, base_channels=8, hidden=16, latent=16).load_widened(small.state_dict())
+    with pytest.raises(ValueError, match="encoder.0.weight"):
+        CompactMeshPredictor(2, base_channels=16, hidden=48, latent=24).load_widened(small.state_dict())
+    with pytest.raises(ValueError, match="not a compact predictor"):
+        big.load_widened({"x": torch.zeros(1)})

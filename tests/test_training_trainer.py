@@ -464,3 +464,26 @@ def test_generator_arch_binds_a_resume_only_where_there_is_a_generator(data_dir,
     Trainer(norm_cfg, progress=False).run()
     with pytest.raises(TrainingError, match="generator_arch"):
         Trainer(norm_cfg.replace(generator_arch="resize", iters=2), progress=False)
+
+
+def test_init_mesh_widens_a_narrower_compact_predictor(data_dir, tmp_path, capsys):
+    """--init-mesh from a run with smaller fully connected layers: the wider predictor starts as the same function."""
+    small = tmp_path / "small"
+    assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(small), "--iters", "1", "--ckpt-every", "1",
+                *TINY_FLAGS]) == 0, capsys.readouterr().err
+    wide = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "wide"), iters=1,
+                               init_mesh=str(small), **{**TINY, "predictor_hidden": 48, "predictor_latent": 24}),
+                   progress=False)
+    narrow = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "narrow"), iters=1,
+                                 init_mesh=str(small), **TINY), progress=False)
+    a, b = wide.models["predictor"].eval(), narrow.models["predictor"].eval()
+    assert a.decoder[0].out_features == 48 and b.decoder[0].out_features == 32
+    x = torch.rand(2, 3, 64, 64)
+    for u, v in zip(a(x), b(x)):
+        torch.testing.assert_close(u, v, rtol=1e-5, atol=1e-6)
+    assert "widened" in (tmp_path / "wide" / "events.log").read_text()
+    # narrower than the run's is refused up front, in one line
+    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "bad"), "--iters", "1",
+              "--init-mesh", str(small), *TINY_FLAGS, "--predictor-hidden", "16"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "predictor_hidden 32 there, 16 here" in err and "Traceback" not in err

@@ -83,6 +83,8 @@ INIT_FIELDS = {
                   "predictor_modes"),
 }
 """Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
+WIDENABLE = ("predictor_hidden", "predictor_latent")
+"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_widened``)."""
 
 
 def _check_init_run(run: str, flag: str, role: str, cfg) -> None:
@@ -97,8 +99,12 @@ def _check_init_run(run: str, flag: str, role: str, cfg) -> None:
         raise ConfigError(f"{flag} {run}: its checkpoint carries an unusable config ({exc})") from None
     if role not in state["models"]:
         raise ConfigError(f"{flag} {run}: a {saved.mode} run, it has no {role} to initialise from")
-    diffs = [f"{k} {getattr(saved, k)} there, {getattr(cfg, k)} here" for k in INIT_FIELDS[role]
-             if getattr(saved, k) != getattr(cfg, k)]
+    def fits(k: str) -> bool:  # a compact predictor is widened to larger fully connected layers (load_widened)
+        if k in WIDENABLE and cfg.predictor_arch == "compact":
+            return getattr(saved, k) <= getattr(cfg, k)
+        return getattr(saved, k) == getattr(cfg, k)
+
+    diffs = [f"{k} {getattr(saved, k)} there, {getattr(cfg, k)} here" for k in INIT_FIELDS[role] if not fits(k)]
     if diffs:
         raise ConfigError(f"{flag} {run}: its {role} was trained with another configuration ({'; '.join(diffs)})")
 

@@ -114,6 +114,9 @@ class TrainConfig:
         augment_strength: sketch augmentation strength of the dataset.
         categories: restrict to these categories (empty = all).
         init_normals, init_mesh: runs whose last checkpoint initialises the generator / predictor.
+            A compact predictor with a smaller ``predictor_latent`` / ``predictor_hidden`` than this
+            config's is widened to it, computing the same function at the start
+            (:meth:`training.model.networks.CompactMeshPredictor.load_widened`).
         debug_nan_iters: iterations at which a NaN is injected into every loss (tests of the guard).
         debug_sleep: seconds to sleep per iteration (tests that kill a run mid-way).
     """

@@ -460,11 +460,25 @@ class Trainer:
                     continue
                 if name not in state["models"]:
                     raise TrainingError(f"run {run} has no {name} weights to initialise from")
-                try:
-                    self.models[name].load_state_dict(state["models"][name])
-                except RuntimeError as exc:
-                    raise TrainingError(f"{name} weights of run {run} do not fit this config: {exc}") from None
+                widened = self._load_init(name, state["models"][name], run)
+                if widened:
+                    self._event(f"{name} widened from {run}: latent {widened[0]} -> {self.cfg.predictor_latent}, "
+                                f"hidden {widened[1]} -> {self.cfg.predictor_hidden} (same function at the start)")
             self._event(f"initialised {[n for n in names if n in self.models]} from {run}")
+
+    def _load_init(self, name: str, weights: dict, run: str) -> tuple[int, int] | None:
+        """Load ``weights`` into model ``name``; a narrower compact predictor is widened (old widths returned)."""
+        model = self.models[name]
+        try:
+            model.load_state_dict(weights)
+            return None
+        except RuntimeError as exc:
+            if not hasattr(model, "load_widened"):
+                raise TrainingError(f"{name} weights of run {run} do not fit this config: {exc}") from None
+            try:
+                return model.load_widened(weights)
+            except ValueError as why:
+                raise TrainingError(f"{name} weights of run {run} do not fit this config: {why}") from None
 
     def save(self) -> Path | None:
         """Checkpoint now (rank 0), and remember this as the last good state."""

@@ -474,6 +474,57 @@ class CompactMeshPredictor(_TemplateOffsets):
         super()._load_from_state_dict(state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                                       error_msgs)
 
+    @torch.no_grad()
+    def load_widened(self, state_dict: dict) -> tuple[int, int]:
+        """Load a compact predictor with a narrower code and decoder so this one computes the same function.
+
+        Net2Net-style growth (Chen et al. 2016) of the two fully connected layers, so a trained predictor
+        can go on training with more capacity without starting again: the old weights fill the top-left
+        blocks; a new code unit feeds no old hidden unit (zero columns) and a new hidden unit feeds no
+        output (zero head columns), while their incoming weights keep this module's fresh initialisation.
+        The zero blocks get a gradient at the first step (the units they connect are active), the new
+        code units' incoming weights from the second, once those blocks moved. The heads' weights are rescaled by
+        ``sqrt(hidden / old_hidden)`` to undo the change of ``head_gain``. The encoder's convolutions,
+        BatchNorm statistics, basis and the heads' output sizes must match.
+
+        Returns:
+            (old latent, old hidden).
+
+        Raises:
+            ValueError: a tensor other than the widened ones differs in shape, or an old width is larger.
+        """
+        fc = f"encoder.{len(self.encoder) - 2}"  # the encoder's Linear (before its ReLU)
+        for k in (f"{fc}.weight", "decoder.0.weight"):
+            if k not in state_dict:
+                raise ValueError(f"cannot widen: the weights have no {k} (not a compact predictor)")
+        old_latent, old_hidden = state_dict[f"{fc}.weight"].shape[0], state_dict["decoder.0.weight"].shape[0]
+        latent, hidden = self.decoder[0].in_features, self.decoder[0].out_features
+        if old_latent > latent or old_hidden > hidden:
+            raise ValueError(f"cannot widen latent {old_latent} -> {latent}, hidden {old_hidden} -> {hidden}: "
+                             "the new widths must be at least the old")
+        own = self.state_dict()
+        grown = {f"{fc}.weight", f"{fc}.bias", "decoder.0.weight", "decoder.0.bias", "local_head.weight",
+                 "global_head.weight"}
+        bad = sorted(k for k in own if k not in grown and (k not in state_dict or state_dict[k].shape != own[k].shape))
+        bad += sorted(k for k in state_dict if k not in own)
+        bad += sorted(k for k in ("local_head.weight", "global_head.weight")
+                      if state_dict[k].shape != (own[k].shape[0], old_hidden))
+        if bad:
+            raise ValueError(f"cannot widen: {', '.join(bad[:4])} differ(s) in shape or presence")
+        merged = {k: (v if k in grown else state_dict[k]).clone() for k, v in own.items()}
+        merged[f"{fc}.weight"][:old_latent] = state_dict[f"{fc}.weight"]
+        merged[f"{fc}.bias"][:old_latent] = state_dict[f"{fc}.bias"]
+        merged["decoder.0.weight"][:old_hidden, :old_latent] = state_dict["decoder.0.weight"]
+        merged["decoder.0.weight"][:old_hidden, old_latent:] = 0.0
+        merged["decoder.0.bias"][:old_hidden] = state_dict["decoder.0.bias"]
+        gain = math.sqrt(hidden / old_hidden)  # head_gain went from 1/sqrt(old_hidden) to 1/sqrt(hidden)
+        for head in ("local_head", "global_head"):
+            w = merged[f"{head}.weight"]
+            w[:, :old_hidden] = state_dict[f"{head}.weight"] * gain
+            w[:, old_hidden:] = 0.0
+        self.load_state_dict(merged)
+        return int(old_latent), int(old_hidden)
+
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
         _check_image(normals, 3, self.input_size, "normals")
