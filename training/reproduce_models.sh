@@ -10,8 +10,9 @@
 #   (GPU_FILES, GPU_BASIS) and the steps from joint-v2 on, with RUNS2=runs/gpu OUT2=out/v3.
 # The fourth bundled models (all-v4): the third's predictor continued on the generator's own normal images of
 #   the training sketches (generated-v4 predictor-v4), evaluated, exported and shipped into OUT4 [out/v4].
-# The fifth bundled models (all-v5): the fourth's predictor continued on two generated sets (the fourth's and a
-#   second drawing of every view: another seed, full-strength augmentation; generated-v5 predictor-v5), into OUT5 [out/v5].
+# Trials after the fourth (trials-v5, into OUT5 [out/v5]; nothing shipped): the fourth's predictor continued on two
+#   generated sets (a second drawing of every view: another seed, full-strength augmentation) and with doubled fully
+#   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 eval-*-v5 eval-train-v5).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -223,15 +224,10 @@ step() {
       # scores 0.44 on training sketches against 0.73 for direct fits
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v5_wide" --input-normals normals16 \
         --predictor-latent 512 --predictor-hidden 1024 ;;
-    predictor-v5-more)  # the two-set run continued for V5B_ITERS [9000] iterations (V5B_MINUTES [35] at most)
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v5_two_sets" --input-normals normals16,normals16_s1 \
-        --lambda-n 0 --lr-mesh 3e-4 --iters "${V5B_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
-        --out "$RUNS2/v5_two_sets_more" --max-minutes "${V5B_MINUTES:-35}" ;;
-    eval-v5|eval-strong-v5|eval-side-v5|eval-gt-v5)  # the wide and two-set runs against the one-set control and the fourth
+    eval-v5|eval-strong-v5|eval-side-v5|eval-gt-v5)  # the wide and two-set runs against the one-set control and
+      # their start (the fourth bundled predictor)
       eval_case "$1"
-      local more=()  # predictor-v5-more's run first where it exists
-      [ ! -d "$RUNS2/v5_two_sets_more" ] || more=("$RUNS2/v5_two_sets_more" --baseline-run)
-      sketchmesh eval "${more[@]}" "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v5_two_sets" --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/v4_generated_more" \
         "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/$EVAL_NAME" ;;
     eval-train-v5)  # the same from clean sketches of training views: how well the predictors fit what they
@@ -239,24 +235,6 @@ step() {
       sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/continued_2d" --no-retrieval \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
-    export-v5)  # the chosen predictor (PRED5 [v5_two_sets_more]) with the third models' generator, int8 predictor
-      local pred=${PRED5:-v5_two_sets_more}
-      sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT5/models_fp32"
-      sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT5/models_int8" --quantize int8 ;;
-    tradeoff-v5)  # error against run time in the app's engine: the fifth pair beside the fourth and width 8
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v5=$OUT5/models_fp32" \
-        --variant "w16-v4=$OUT4/models_fp32" --variant "w8-full=$OUT2/models_w8_pretrained" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v5:int8-predictor \
-        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT5/tradeoff" ;;
-    compare-v5)  # the app's ONNX path: the five bundled pairs in turn (from git), retrieval and the template sphere
-      local folders=()
-      for c in 2e5204b cc51aaf 0c5ab8e bdf4623; do
-        mkdir -p "$OUT5/models_$c"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT5/models_$c/$f"; done
-        folders+=(--models "$OUT5/models_$c")
-      done
-      sketchmesh eval "${folders[@]}" --models "$OUT5/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
-        --threads 2 --out "$OUT5/compare" ;;
     eval-v4|eval-strong-v4|eval-side-v4|eval-gt-v4)  # the two against their start and the third models' predictor
       eval_case "$1"
       local more=()  # predictor-v4-more's run first where it exists
@@ -385,17 +363,16 @@ EOF
       for s in generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 \
                gallery-v2 compare-v4 ship-v2 refine-v2; do step "$s"; done
       step docs-v2 ;;
-    all-v5)  # the fifth bundled models: the fourth's runs (all-v4 first where they are missing) with the predictor
-      # continued on two generated sets (generated-v5 predictor-v5 predictor-v5-more)
-      RUNS2=runs/gpu; OUT2=out/v3; SHIP_MODELS=$OUT5/models_int8; SHIP_OUT=$OUT5
+    trials-v5)  # the fifth session's trials on the fourth bundled models' runs (all-v4 first where they are
+      # missing): a second generated set, and doubled fully connected layers, each against the one-set control
+      # at equal time (nothing shipped: neither beat it)
+      RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v4_generated_more" ] || step all-v4
-      for s in generated-v5 predictor-v5 predictor-v5-more eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 export-v5 \
-               tradeoff-v5 gallery-v2 compare-v5 ship-v2 refine-v2; do step "$s"; done
-      step docs-v2 ;;
+      for s in generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 predictor-v5-more eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 export-v5 tradeoff-v5 compare-v5 all all-gpu all-v4 all-v5 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 all all-gpu all-v4 trials-v5 all-v1)" >&2
       exit 2 ;;
   esac
 }
