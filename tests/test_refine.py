@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from onnx_fixtures import write_fixture_models
 
-from engine.camera import NEAR
+from engine.camera import NEAR, Camera
 from engine.cli import MAX_REFINE_STEPS
 from engine.icosphere import icosphere
 from engine.mesh import Mesh
@@ -22,6 +22,7 @@ from engine.preprocess import rasterize_strokes
 from engine.refine import (
     MAX_STEPS,
     fill_drawing,
+    fit_camera,
     pixel_coords,
     refine_mesh,
     refine_prediction,
@@ -231,3 +232,39 @@ def test_depth_of_every_vertex_stays_in_front_of_the_camera():
     res = refine_mesh(m, _ellipse(60, 100), 3, camera=cam)
     _, depth = pixel_coords(res.mesh.vertices, cam, SIZE)
     assert np.all(depth > NEAR)
+
+
+def test_fit_camera_recovers_a_zoom_and_shift_of_the_sketch_camera():
+    """A target drawn by the framed camera zoomed 12 % and moved: fit_camera finds that camera again."""
+    m = _bumpy_sphere(2).with_vertices((_bumpy_sphere(2).vertices * np.array([1.0, 0.6, 0.8])).astype(np.float32))
+    base = sketch_camera(m)
+    s, dx, dy = 1.12, 0.05, -0.03
+    true = Camera(base.R, base.t, base.focal * s, (base.principal[0] * s + dx, base.principal[1] * s + dy))
+    target = _silhouette(m, true)
+    fit = fit_camera(m, target)
+    assert abs(fit.focal / true.focal - 1.0) < 0.03, fit.focal / true.focal
+    np.testing.assert_allclose(fit.principal, true.principal, atol=0.02)
+    assert np.array_equal(fit.R, base.R) and np.array_equal(fit.t, base.t)  # same centre and rotation: depth kept
+    assert silhouette_iou(_silhouette(m, fit), target) > 0.97 > silhouette_iou(_silhouette(m, base), target)
+    # refinement without a camera works in that one and says so
+    res = refine_mesh(m, target, 2)
+    assert res.camera is not None and res.camera.focal == fit.focal and res.camera.principal == fit.principal
+
+
+def test_fit_camera_never_does_worse_than_the_bounding_box_and_falls_back_on_empty_input():
+    """A spike sets the bounding box (the framing shrinks the body); the fit overlaps the target at least as well."""
+    body = icosphere(3, 0.5)
+    spiky = body.vertices.copy()
+    spiky[np.argmax(spiky[:, 0])] *= 1.8  # one vertex far out to the right
+    m = body.with_vertices(spiky.astype(np.float32))
+    target = _ellipse(102, 102)  # the drawing: the round body alone
+    base, fit = sketch_camera(m), fit_camera(m, target)
+    iou_base = silhouette_iou(_silhouette(m, base), target)
+    iou_fit = silhouette_iou(_silhouette(m, fit), target)
+    assert iou_fit >= iou_base and iou_fit > 0.9, (iou_base, iou_fit)
+    assert fit.focal > base.focal  # the body is zoomed back up to the drawing's size
+    empty = np.zeros((SIZE, SIZE), bool)
+    assert fit_camera(m, empty) is not None and fit_camera(m, empty).focal == base.focal
+    behind = m.with_vertices((m.vertices + np.array([0, 0, 50.0])).astype(np.float32))
+    cam = Camera(base.R, base.t, base.focal, base.principal)
+    assert fit_camera(behind, target, cam) is cam  # cannot be projected: the starting camera, no NaN

@@ -7,8 +7,8 @@ N steps for each ``--steps`` N (0 = the unrefined prediction). Per N it reports,
 categories:
 
 * ``sil_iou_target`` -- silhouette IoU at 256x256 between the mesh seen from the sketch camera
-  (:func:`engine.refine.sketch_camera` of the unrefined prediction, the camera the engine uses)
-  and the target outline (the drawing's filled region, or the generator's silhouette where the
+  (:func:`engine.refine.fit_camera` of the unrefined prediction and the target, the camera the
+  engine refines in) and the target outline (the drawing's filled region, or the generator's silhouette where the
   drawing is not closed): what the artist sees;
 * ``sil_iou_gt`` -- the same mesh rendered with the *true* framed camera of the view against the
   true silhouette of the shape;
@@ -70,11 +70,11 @@ def run_refine_bench(
     from engine.pipeline import SketchEngine
     from engine.postprocess import self_intersections as count_intersections
     from engine.refine import (
+        fit_camera,
         pixel_coords,
         refine_mesh,
         render_silhouette,
         silhouette_iou,
-        sketch_camera,
         target_outline,
     )
     from training.data.dataset import ShapeViewDataset
@@ -114,7 +114,7 @@ def run_refine_bench(
                 gt[key] = (m, solid_voxels(m, voxel_resolution))
             gmesh, gvox = gt[key]
             target, source = target_outline(sketch, pred.normals)
-            cam = sketch_camera(pred.mesh)
+            cam = fit_camera(pred.mesh, target)  # what refine_mesh uses when given no camera
             true_cam = Camera(np.eye(3), cam16[9:12], float(cam16[12]), (float(cam16[13]), float(cam16[14])))
             gt_sil = it["silhouette"][0].numpy() > 0.5
             for n in steps:
