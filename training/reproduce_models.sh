@@ -223,13 +223,16 @@ step() {
       # decoder 512 -> 1024; widened so it starts as the same function): capacity, since the predictor
       # scores 0.44 on training sketches against 0.73 for direct fits
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v5_wide" --input-normals normals16 \
-        --predictor-latent 512 --predictor-hidden 1024 ;;
+        --predictor-latent 512 --predictor-hidden 1024
+      # and the full loss: the paper's normal term (weight 0.002) back on, the rest as the control (issue 16's
+      # full-minus-silhouette comparison on these runs)
+      sketchmesh train mesh "${cont[@]}" --lambda-n 0.002 --out "$RUNS2/v5_full" --input-normals normals16 ;;
     eval-v5|eval-strong-v5|eval-side-v5|eval-gt-v5)  # the wide and two-set runs against the one-set control and
       # their start (the fourth bundled predictor)
       eval_case "$1"
       sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
-        --baseline-run "$RUNS2/v5_two_sets" --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/v4_generated_more" \
-        "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/$EVAL_NAME" ;;
+        --baseline-run "$RUNS2/v5_two_sets" --baseline-run "$RUNS2/v5_full" --baseline-run "$RUNS2/v4_generated_last" \
+        --baseline-run "$RUNS2/v4_generated_more" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/$EVAL_NAME" ;;
     eval-train-v5)  # the same from clean sketches of training views: how well the predictors fit what they
       # trained on (against the direct fits' 0.73 of `bench fit`)
       sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
