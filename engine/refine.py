@@ -82,6 +82,7 @@ MAX_STEPS = 100
 """Largest accepted step count."""
 
 DEFAULT_RESOLUTION = 96
+"""Side of the square image the refinement works in (the 256 sketch is area-downsampled)."""
 
 FIT_RESOLUTION = 64
 """Side of the images :func:`fit_camera` compares."""
@@ -89,7 +90,6 @@ FIT_RESOLUTION = 64
 FIT_SCALES = 7
 FIT_SCALE_RANGE = 0.15
 """:func:`fit_camera` tries this many scales, log-spaced over +-FIT_SCALE_RANGE around the area match."""
-"""Side of the square image the refinement works in (the 256 sketch is area-downsampled)."""
 
 SMOOTHING_COARSE = 1e-1
 SMOOTHING_FINE = 1e-3
@@ -202,7 +202,9 @@ def _ndc_moments(mask: np.ndarray) -> tuple[float, float, float]:
     """(area, mean u, mean v) of a (n, n) bool mask in NDC units (pixel centres; v up)."""
     rows, cols = np.nonzero(mask)
     n = mask.shape[0]
-    return len(rows) * (2.0 / n) ** 2, float(((cols + 0.5) / n * 2.0 - 1.0).mean()), float((1.0 - (rows + 0.5) / n * 2.0).mean())
+    u = (cols + 0.5) / n * 2.0 - 1.0
+    v = 1.0 - (rows + 0.5) / n * 2.0
+    return len(rows) * (2.0 / n) ** 2, float(u.mean()), float(v.mean())
 
 
 def fit_camera(mesh: Mesh, target: np.ndarray, camera: Camera | None = None, *,

@@ -8,8 +8,8 @@ categories:
 
 * ``sil_iou_target`` -- silhouette IoU at 256x256 between the mesh seen from the sketch camera
   (:func:`engine.refine.fit_camera` of the unrefined prediction and the target, the camera the
-  engine refines in) and the target outline (the drawing's filled region, or the generator's silhouette where the
-  drawing is not closed): what the artist sees;
+  engine refines in) and the target outline (the drawing's filled region, or the generator's
+  silhouette where the drawing is not closed): what the artist sees;
 * ``sil_iou_gt`` -- the same mesh rendered with the *true* framed camera of the view against the
   true silhouette of the shape;
 * ``voxel_iou`` -- solid 32^3 voxel IoU against the ground-truth shape (the paper's metric);

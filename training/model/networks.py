@@ -483,8 +483,8 @@ class CompactMeshPredictor(_TemplateOffsets):
         blocks; a new code unit feeds no old hidden unit (zero columns) and a new hidden unit feeds no
         output (zero head columns), while their incoming weights keep this module's fresh initialisation.
         The zero blocks get a gradient at the first step (the units they connect are active), the new
-        code units' incoming weights from the second, once those blocks moved. The heads' weights are rescaled by
-        ``sqrt(hidden / old_hidden)`` to undo the change of ``head_gain``. The encoder's convolutions,
+        code units' incoming weights from the second, once those blocks moved. The heads' weights are
+        rescaled by ``sqrt(hidden / old_hidden)`` to undo the change of ``head_gain``. The encoder's convolutions,
         BatchNorm statistics, basis and the heads' output sizes must match.
 
         Returns:
