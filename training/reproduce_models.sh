@@ -12,7 +12,7 @@
 #   the training sketches (generated-v4 predictor-v4), evaluated, exported and shipped into OUT4 [out/v4].
 # Trials after the fourth (trials-v5, into OUT5 [out/v5]; nothing shipped): the fourth's predictor continued on two
 #   generated sets (a second drawing of every view: another seed, full-strength augmentation) and with doubled fully
-#   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 eval-*-v5 eval-train-v5).
+#   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 logs-v5 eval-*-v5 eval-train-v5).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -233,6 +233,25 @@ step() {
       sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v5_two_sets" --baseline-run "$RUNS2/v5_full" --baseline-run "$RUNS2/v4_generated_last" \
         --baseline-run "$RUNS2/v4_generated_more" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/$EVAL_NAME" ;;
+    logs-v5)  # what the trials' training logs say: rate and loss terms over each run's last 1,000 iterations,
+      # and how far the wide run's new head columns grew (norm against the old columns')
+      python3 - "$RUNS2" <<'EOF'
+import csv, sys, numpy as np
+from pathlib import Path
+from training.loop.checkpoint import load_latest_checkpoint
+runs = Path(sys.argv[1])
+for name in ("v4_true_inputs", "v4_generated_last", "v5_two_sets", "v5_wide", "v5_full"):
+    with open(runs / name / "log.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    it = np.array([int(r["iteration"]) for r in rows])
+    last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
+    terms = ", ".join(f"{k} {np.mean([float(r[k]) for r in last]):.4g}" for k in ("mesh_total", "mesh_silhouette", "mesh_normal"))
+    print(f"{name}: {it.max()} iterations, {it.max() / float(rows[-1]['wall_s']):.2f} it/s; last 1,000: {terms}")
+head = load_latest_checkpoint(runs / "v5_wide")["models"]["predictor"]["local_head.weight"]
+old = int(load_latest_checkpoint(runs / "v4_generated_more")["models"]["predictor"]["local_head.weight"].shape[1])
+print(f"v5_wide: new head columns' norm / old columns' norm = {float(head[:, old:].norm() / head[:, :old].norm()):.3f}")
+EOF
+      ;;
     eval-train-v5)  # the same from clean sketches of training views: how well the predictors fit what they
       # trained on (against the direct fits' 0.73 of `bench fit`)
       sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
@@ -371,11 +390,11 @@ EOF
       # at equal time (nothing shipped: neither beat it)
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v4_generated_more" ] || step all-v4
-      for s in generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5; do step "$s"; done ;;
+      for s in generated-v5 predictor-v5 logs-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 all all-gpu all-v4 trials-v5 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 all all-gpu all-v4 trials-v5 all-v1)" >&2
       exit 2 ;;
   esac
 }
