@@ -120,6 +120,25 @@ def test_a_model_iou_is_the_engines_mesh_rotated_back_to_the_world(result, world
         assert row["iou"][label] == pytest.approx(np.mean([v["iou"][label] for v in row["per_view"]]), abs=1e-12)
 
 
+def test_voxel_centres_flag_scores_with_cell_centres_only(world, result):
+    """--voxel-centres reproduces the earlier tables' measure: the template floor is the centre-only IoU."""
+    res_surface, _ = result
+    out = world["root"] / "report_centres"
+    rc = main(["eval", "--models", "bundled", "--data", str(world["data"]), "--split", "all", "--threads", "1",
+               "--quiet", "--no-retrieval", "--voxel-centres", "--out", str(out)])
+    assert rc == 0
+    res = json.loads((out / "eval_models_all.json").read_text())
+    assert res["voxel_surface"] is False and res_surface["voxel_surface"] is True
+    assert "voxels by cell centres only" in (out / "eval_models_all.md").read_text()
+    sphere = icosphere(3, 0.5)
+    for row in res["rows"]:
+        with _shape_file(world, row["shape_id"]) as z:
+            gt = Mesh(z["vertices"], z["faces"])
+        assert row["iou"]["template"] == pytest.approx(voxel_iou(sphere, gt, 32, surface=False), abs=1e-12)
+    surface_rows = {r["shape_id"]: r["iou"]["template"] for r in res_surface["rows"]}
+    assert any(abs(surface_rows[r["shape_id"]] - r["iou"]["template"]) > 1e-3 for r in res["rows"])
+
+
 def test_no_train_split_skips_retrieval_with_a_note(world, capsys):
     data = world["root"] / "all_test"
     shutil.copytree(world["data"], data)

@@ -188,3 +188,25 @@ def test_gradient_variants_pass_the_same_fit(variant):
                       lr=0.01, smoothing=0.0, normal_region="image", **variant)
     assert min(result.silhouette_iou) >= IOU_TARGET, f"{variant}: {np.round(result.silhouette_iou, 3).tolist()}"
     assert result.voxel_iou > 0.65
+
+
+def test_fit_scores_voxels_by_the_chosen_measure():
+    """voxel_surface=False (``--voxel-centres``) scores the same fitted mesh by cell centres only."""
+    from training.evaluation.metrics import voxel_iou
+
+    rod = trimesh.creation.box((0.04, 0.04, 1.0))  # normalised: 0.04 x 0.04 x 1, thinner than a 32^3 cell
+    a = fit_mesh(_mesh(rod), views=2, iters=0, resolution=32, progress=False)
+    b = fit_mesh(_mesh(rod), views=2, iters=0, resolution=32, progress=False, voxel_surface=False)
+    assert a.voxel_iou == pytest.approx(voxel_iou(a.mesh, a.target, 32), abs=1e-12)
+    assert b.voxel_iou == pytest.approx(voxel_iou(b.mesh, b.target, 32, surface=False), abs=1e-12)
+    assert a.voxel_iou != b.voxel_iou
+    assert main_fit_args_voxel(["--voxel-centres"]) is False and main_fit_args_voxel([]) is True
+
+
+def main_fit_args_voxel(extra: list[str]) -> bool:
+    """What ``sketchmesh bench fit`` passes to fit_mesh for its voxel measure."""
+    from sketchmesh.cli import build_parser
+    from training.bench.fit import _fit_options
+
+    args = build_parser().parse_args(["bench", "fit", "--target", "x.obj", *extra])
+    return _fit_options(args).get("voxel_surface", True)

@@ -15,6 +15,7 @@ from training.evaluation.metrics import (
     silhouette_iou,
     solid_voxels,
     surface_metrics,
+    surface_voxels,
     voxel_centers,
     voxel_iou,
 )
@@ -80,7 +81,7 @@ def test_sphere_self_and_disjoint():
     s = icosphere(3)
     assert voxel_iou(s, s) == 1.0
     expected_cells = (4 / 3) * np.pi * 16**3 * 0.98  # the level-3 polyhedron is ~2 % smaller than the sphere
-    assert abs(solid_voxels(s, 32).sum() - expected_cells) / expected_cells < 0.03
+    assert abs(solid_voxels(s, 32, surface=False).sum() - expected_cells) / expected_cells < 0.03
     a = _box((0.3, 0.3, 0.3), (-0.3, 0.0, 0.0))
     b = _box((0.3, 0.3, 0.3), (0.3, 0.0, 0.0))
     assert voxel_iou(a, b) == 0.0
@@ -107,13 +108,100 @@ def test_solid_voxels_match_slow_winding_number(name):
         mesh = Mesh(s.vertices, s.faces[:, ::-1])
     w = slow_winding_number(mesh, _grid_points(R)).reshape(R, R, R)
     reference = np.abs(w) >= 0.5
-    got = solid_voxels(mesh, R)
+    got = solid_voxels(mesh, R, surface=False)
+    assert np.all(solid_voxels(mesh, R) == got | surface_voxels(mesh, R))
     mismatch = np.argwhere(got != reference)
     # allow cells whose centre is almost on the surface (|w| near 0.5), none elsewhere
     assert all(abs(abs(w[tuple(i)]) - 0.5) < 0.2 for i in mismatch), f"mismatches at {mismatch[:5].tolist()}"
     assert len(mismatch) <= 0.01 * R**3
     if name == "overlapping_spheres":
         assert got[R // 2, R // 2, R // 2]  # the overlap counts as solid (ray parity would call it empty)
+
+
+def _clip_hits(tri: np.ndarray, R: int) -> np.ndarray:
+    """Reference for surface_voxels: Sutherland-Hodgman clipping of each triangle to each cell, one at a time."""
+    g = (tri + 0.5) * R
+    out = np.zeros((R, R, R), dtype=bool)
+    for t in g:
+        for cell in np.ndindex(R, R, R):
+            poly = list(t)
+            for axis in range(3):
+                for bound, sign in ((cell[axis], 1.0), (cell[axis] + 1, -1.0)):
+                    nxt = []
+                    for a, b in zip(poly, poly[1:] + poly[:1]):
+                        da, db = sign * (a[axis] - bound), sign * (b[axis] - bound)
+                        if da >= 0:
+                            nxt.append(a)
+                        if (da >= 0) != (db >= 0):
+                            nxt.append(a + (b - a) * (da / (da - db)))
+                    poly = nxt
+                    if not poly:
+                        break
+                if not poly:
+                    break
+            out[cell] |= bool(poly)
+    return out
+
+
+def test_surface_voxels_match_triangle_clipping():
+    rng = np.random.default_rng(4)
+    R = 6
+    for n in range(12):  # triangles of every size, some reaching out of the cube
+        centre = rng.uniform(-0.5, 0.5, 3)
+        tri = centre + rng.normal(size=(3, 3)) * (0.02 if n < 4 else 0.3)
+        got = surface_voxels(Mesh(tri, np.array([[0, 1, 2]])), R)
+        np.testing.assert_array_equal(got, _clip_hits(tri[None], R), err_msg=f"triangle {n}")
+
+
+def test_thin_parts_keep_their_cells():
+    # a plate 0.3 cells thick that holds no cell centre: the surface's cells alone give it its layer
+    R = 32
+    z0, z1 = (20.1 / R - 0.5), (20.4 / R - 0.5)
+    lo, hi = 8.5 / R - 0.5, 23.5 / R - 0.5
+    plate = _box((hi - lo, hi - lo, z1 - z0), ((hi + lo) / 2, (hi + lo) / 2, (z1 + z0) / 2))
+    assert not solid_voxels(plate, R, surface=False).any()
+    expected = np.zeros((R, R, R), dtype=bool)
+    expected[8:24, 8:24, 20] = True
+    np.testing.assert_array_equal(solid_voxels(plate, R), expected)
+    # two disjoint rifle-thin rods: centres alone call both empty and their IoU a perfect 1
+    # (0.64 cells thick, centred on cell boundaries: between the centres 15.5 and 16.5, 25.5 and 26.5)
+    rod_a = _box((0.02, 0.02, 0.9))
+    rod_b = _box((0.02, 0.02, 0.9), (10 / R, 10 / R, 0.0))
+    assert voxel_iou(rod_a, rod_b, R, surface=False) == 1.0
+    assert voxel_iou(rod_a, rod_b, R) == 0.0
+    assert voxel_iou(rod_a, rod_a, R) == 1.0 and solid_voxels(rod_a, R).sum() >= 28
+
+
+def test_surface_cells_of_boxes_hand_computed():
+    # side 0.52 at R = 32 spans grid [7.68, 24.32]: centres give cells 8..23 (16), the surface adds a layer
+    box = _box((0.52, 0.52, 0.52))
+    assert solid_voxels(box, 32, surface=False).sum() == 16**3
+    assert solid_voxels(box, 32).sum() == 18**3
+    # faces exactly on cell boundaries touch no open cell: the 0.5 cube keeps 16^3 either way
+    assert not surface_voxels(_box((0.5, 0.5, 0.5)), 32).any()
+    assert solid_voxels(_box((0.5, 0.5, 0.5)), 32).sum() == 16**3
+
+
+def test_surface_voxels_of_degenerate_faces_and_chunks(monkeypatch):
+    import training.evaluation.metrics as metrics
+
+    R = 8
+    # a segment along x through the middle of row (y, z) = (2, 5), given as a zero-area triangle
+    y, z = (2.5 / R - 0.5), (5.5 / R - 0.5)
+    seg = Mesh(np.array([[-0.3, y, z], [0.1, y, z], [0.2, y, z]]), np.array([[0, 1, 2]]))
+    expected = np.zeros((R, R, R), dtype=bool)
+    expected[1:6, 2, 5] = True  # x from (-0.3 + 0.5) * 8 = 1.6 to 5.6: cells 1..5
+    np.testing.assert_array_equal(surface_voxels(seg, R), expected)
+    point = Mesh(np.full((3, 3), 0.01), np.array([[0, 1, 2]]))
+    assert np.argwhere(surface_voxels(point, R)).tolist() == [[4, 4, 4]]
+    outside = _box((0.2, 0.2, 0.2), (2.0, 0.0, 0.0))
+    assert not surface_voxels(outside, R).any()
+    # the candidate pairs are tested in chunks: any chunk size gives the same cells
+    s = icosphere(3, 0.45)
+    whole = surface_voxels(s, 16)
+    monkeypatch.setattr(metrics, "SURFACE_CANDIDATE_CHUNK", 37)
+    np.testing.assert_array_equal(surface_voxels(s, 16), whole)
+    assert whole.sum() > 0 and not whole[8, 8, 8]  # a shell, hollow inside
 
 
 def test_solid_voxels_rejects_bad_resolution():

@@ -13,6 +13,8 @@
 # Trials after the fourth (trials-v5, into OUT5 [out/v5]; nothing shipped): the fourth's predictor continued on two
 #   generated sets (a second drawing of every view: another seed, full-strength augmentation) and with doubled fully
 #   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 logs-v5 eval-*-v5 eval-train-v5).
+# The surface measure of voxel IoU (remeasure-v6, into OUT6 [out/v6]): the headline figures again, with the cells a
+#   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -55,6 +57,12 @@ SAMPLES2=${SAMPLES2:-156}
 OUT2=${OUT2:-out/v2}
 OUT4=${OUT4:-out/v4}
 OUT5=${OUT5:-out/v5}
+OUT6=${OUT6:-out/v6}
+# Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
+# (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
+# centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
+# surface's cells. The steps from eval-v6 on use the surface measure.
+read -r -a CENTRES <<< "${CENTRES---voxel-centres}"
 SHIP_MODELS=${SHIP_MODELS:-$OUT2/models_silhouette_int8}  # the pair ship-v2 bundles (gallery-v2, refine-v2, docs-v2 too)
 SHIP_OUT=${SHIP_OUT:-$OUT2}  # where gallery-v2 and refine-v2 write and docs-v2 reads (with OUT2's tradeoff, eval_clean)  # the fourth models (all-v4): the third models' runs (RUNS2=runs/gpu) with the predictor continued
 # The first bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
@@ -109,18 +117,18 @@ step() {
       sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals32" -o "$OUT/models_w32_pretrained"
       sketchmesh export "$RUNS/mesh_full" --generator-run "$RUNS/normals16" -o "$OUT/models_w16_pretrained" ;;
     eval)
-      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_clean" ;;
     eval-strong)  # the same sketches with strong hand-drawn augmentation (broken lines, jitter)
-      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS/mesh_full" --data "$DATA" --generator-run "$RUNS/normals16" \
         --baseline-run "$RUNS/mesh_silhouette" --baseline-run "$RUNS/joint" --augment-strength 1.0 \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_strong" ;;
     eval-gt)  # the predictors on ground-truth normal images: the mesh step alone, without the generator
-      sketchmesh eval "$RUNS/mesh_full" --data "$DATA" --gt-normals --baseline-run "$RUNS/mesh_silhouette" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS/mesh_full" --data "$DATA" --gt-normals --baseline-run "$RUNS/mesh_silhouette" \
         --max-samples "$SAMPLES" --threads 2 --out "$OUT/eval_gt_normals" ;;
     tradeoff)
-      sketchmesh bench tradeoff --data "$DATA" --variant "w16-joint=$OUT/models_fp32" \
+      sketchmesh bench tradeoff "${CENTRES[@]}" --data "$DATA" --variant "w16-joint=$OUT/models_fp32" \
         --variant "w32=$OUT/models_w32_pretrained" --variant "w16=$OUT/models_w16_pretrained" \
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-joint:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT/tradeoff" ;;
@@ -130,25 +138,25 @@ step() {
       mkdir -p docs
       cp "$OUT/variants/variants.png" docs/variants.png ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
-      sketchmesh bench overfit --out "$RUNS/overfit" --minutes 20 --iters 4700 ;;
+      sketchmesh bench overfit "${CENTRES[@]}" --out "$RUNS/overfit" --minutes 20 --iters 4700 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
       # (measured before the cosine decay became the default: these runs keep the constant rate)
-      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --set lr_schedule=constant \
         --variant default --variant k1:extra_views=1 --variant k7:extra_views=7 \
         --variant "softras-paper:predictor_arch=softras,lr_mesh=1e-4,lr_warmup=0,extra_views=1,predictor_local_bound=tanh" \
         --variant 3d-diagnostic:supervision=3d
       # the default alone, continued to 20 minutes (same 2-minute chunks)
-      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
+      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
         --set lr_schedule=constant --variant default
       # the silhouette-gradient variants (constant rate, like the default they are compared with) and
       # the cosine decay over what 8 minutes hold
-      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --set lr_schedule=constant --variant far8:edge_range=8 --variant soft:silhouette=soft
-      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --variant cosine:lr_schedule=cosine,iters=1780
       # the cosine default over two hours (resumable: a later call continues the finished chunks)
-      sketchmesh bench variants --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
+      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
         --variant cosine120:lr_schedule=cosine,iters=30000 ;;
     data-v2)  # 1,300 shapes x 12 azimuths x 4 elevations (0, 15, 30, 45 degrees): 62,400 views
       sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 \
@@ -175,7 +183,7 @@ step() {
       sketchmesh train joint --data "$DATA2" --out "$RUNS2/predictor_on_generated" --base-channels 16 --batch 8 \
         --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_silhouette" --lambda-n 0 --lr-g 1e-12 --lr-d 1e-12 \
         --lr-mesh 2e-4 --lr-warmup 0 --iters 1200 --max-minutes 25 --threads 2 --ckpt-every 100 --val-every 0
-      sketchmesh eval "$RUNS2/predictor_on_generated" --data "$DATA2" --baseline-run "$RUNS2/mesh_silhouette" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/predictor_on_generated" --data "$DATA2" --baseline-run "$RUNS2/mesh_silhouette" \
         --generator-run "$RUNS2/normals16" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_predictor_on_generated" ;;
     ceiling-v2)  # diagnostic: the silhouette-only predictor continued for CEIL_MINUTES [50] of wall time side by side
       # (one thread each, cosine over 8,000 iterations from Adam 1e-3) with its 2D loss and with 3D supervision
@@ -186,9 +194,9 @@ step() {
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_2d" --max-minutes "$m" &
       sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_3d" --supervision 3d --max-minutes "$m" &
       wait
-      sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --gt-normals --baseline-run "$RUNS2/continued_3d" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/continued_2d" --data "$DATA2" --gt-normals --baseline-run "$RUNS2/continued_3d" \
         --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling"
-      sketchmesh eval "$RUNS2/continued_2d" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/continued_2d" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_continued_clean" ;;
     generated-v4)  # the predictor's input as the app sees it: the bundled generator (the third models' fp32
       # export of RUNS2/normals16) over the half-strength hand-drawn sketch of every training view (14 min, 2 processes)
@@ -230,7 +238,7 @@ step() {
     eval-v5|eval-strong-v5|eval-side-v5|eval-gt-v5)  # the wide and two-set runs against the one-set control and
       # their start (the fourth bundled predictor)
       eval_case "$1"
-      sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/v5_wide" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v5_two_sets" --baseline-run "$RUNS2/v5_full" --baseline-run "$RUNS2/v4_generated_last" \
         --baseline-run "$RUNS2/v4_generated_more" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/$EVAL_NAME" ;;
     logs-v5)  # what the trials' training logs say: rate and loss terms over each run's last 1,000 iterations,
@@ -254,14 +262,32 @@ EOF
       ;;
     eval-train-v5)  # the same from clean sketches of training views: how well the predictors fit what they
       # trained on (against the direct fits' 0.73 of `bench fit`)
-      sketchmesh eval "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/continued_2d" --no-retrieval \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
+    eval-v6|eval-strong-v6|eval-side-v6|eval-gt-v6)  # the surface measure of voxel IoU (a thin part keeps its
+      # cells): the bundled predictor, the third models', the equal-time control and full loss of trials-v5, retrieval
+      eval_case "$1"
+      sketchmesh eval "$RUNS2/v4_generated_more" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/mesh_silhouette" --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/v5_full" \
+        "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT6/$EVAL_NAME" ;;
+    eval-train-v6)  # the same predictors from clean sketches of training views (how well they fit what they trained on)
+      sketchmesh eval "$RUNS2/v4_generated_more" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v4_generated_last" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
+        --out "$OUT6/eval_train" ;;
+    compare-v6)  # compare-v4's app path (the four bundled pairs from git, retrieval, the template sphere), surface measure
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
+        mkdir -p "$OUT6/models_$c"
+        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT6/models_$c/$f"; done
+        folders+=(--models "$OUT6/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$OUT6/compare" ;;
     eval-v4|eval-strong-v4|eval-side-v4|eval-gt-v4)  # the two against their start and the third models' predictor
       eval_case "$1"
       local more=()  # predictor-v4-more's run first where it exists
       [ ! -d "$RUNS2/v4_generated_more" ] || more=("$RUNS2/v4_generated_more" --baseline-run)
-      sketchmesh eval "${more[@]}" "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      sketchmesh eval "${CENTRES[@]}" "${more[@]}" "$RUNS2/v4_generated_inputs" --data "$DATA2" --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_true_inputs" --baseline-run "$RUNS2/continued_2d" --baseline-run "$RUNS2/mesh_silhouette" \
         "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$OUT4/$EVAL_NAME" ;;
     export-v4)  # the chosen predictor (PRED4 [v4_generated_more]) with the third models' generator, int8 predictor
@@ -269,7 +295,7 @@ EOF
       sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_fp32"
       sketchmesh export "$RUNS2/$pred" --generator-run "$RUNS2/normals16" -o "$OUT4/models_int8" --quantize int8 ;;
     tradeoff-v4)  # error against run time in the app's engine: the fourth pair beside the third's and width 8
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v4=$OUT4/models_fp32" \
+      sketchmesh bench tradeoff "${CENTRES[@]}" --data "$DATA2" --variant "w16-v4=$OUT4/models_fp32" \
         --variant "w16-v3=$OUT2/models_silhouette" --variant "w8-full=$OUT2/models_w8_pretrained" \
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v4:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT4/tradeoff" ;;
@@ -280,7 +306,7 @@ EOF
         for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT4/models_$c/$f"; done
         folders+=(--models "$OUT4/models_$c")
       done
-      sketchmesh eval "${folders[@]}" --models "$OUT4/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
+      sketchmesh eval "${CENTRES[@]}" "${folders[@]}" --models "$OUT4/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
         --threads 2 --out "$OUT4/compare" ;;
     export-v2)  # the fine-tuned pair (float32; int8 predictor), the pre-trained pairs (full loss; silhouette-only,
       # also with an int8 predictor: the bundled pair, see ship-v2) and the width-8 generator's pair
@@ -299,20 +325,20 @@ EOF
       [ ! -d "$RUNS2/mesh_n5e-4" ] || base+=(--baseline-run "$RUNS2/mesh_n5e-4")  # the GPU runs' normal weight 0.0005
       [ "$1" = eval-gt-v2 ] || base+=(--baseline-run "$RUNS2/joint")
       [ -z "${PREV_SIL:-}" ] || base+=(--baseline-run "$PREV_SIL")  # all-gpu: the CPU-trained bundled predictor
-      sketchmesh eval "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${EVAL_EXTRA[@]}" \
+      sketchmesh eval "${CENTRES[@]}" "$RUNS2/mesh_full" --data "$DATA2" --generator-run "$RUNS2/normals16" "${base[@]}" "${EVAL_EXTRA[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/$EVAL_NAME" ;;
     gallery-v2)  # the bundled pair on one test shape per category, from 30 degrees and from the side
       sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" -o "$SHIP_OUT/gallery.png"
       sketchmesh gallery --data "$DATA2" --models "$SHIP_MODELS" --elevation 0 --azimuth 90 \
         -o "$SHIP_OUT/gallery_side.png" ;;
     tradeoff-v2)  # error against run time: generator width, precision and template level, in the app's engine
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-silhouette=$OUT2/models_silhouette" \
+      sketchmesh bench tradeoff "${CENTRES[@]}" --data "$DATA2" --variant "w16-silhouette=$OUT2/models_silhouette" \
         --variant "w16-full=$OUT2/models_pretrained" --variant "w16-joint=$OUT2/models_fp32" \
         --variant "w8-full=$OUT2/models_w8_pretrained" \
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-silhouette:int8-predictor \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT2/tradeoff" ;;
     refine-v2)  # the app's outline refinement with the bundled models: IoU against run time per step count N
-      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --out "$SHIP_OUT/refine" ;;
+      sketchmesh bench refine "${CENTRES[@]}" --data "$DATA2" --max-samples "$SAMPLES2" --out "$SHIP_OUT/refine" ;;
     compare-v2)  # the app's ONNX path on the new test split: the first bundled models (from git) against the
       # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
       mkdir -p "$OUT2/models_v1"
@@ -323,7 +349,7 @@ EOF
         for f in generator.onnx mesh_predictor.onnx; do git show "$PREV_MODELS:assets/models/$f" > "$OUT2/models_v2/$f"; done
         prev=(--models "$OUT2/models_v2")
       fi
-      sketchmesh eval --models "$OUT2/models_v1" "${prev[@]}" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
+      sketchmesh eval "${CENTRES[@]}" --models "$OUT2/models_v1" "${prev[@]}" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
         --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$OUT2/compare" ;;
     ship-v2)  # the chosen pair becomes the app's bundled models: the one that scored best from sketches
       # (clean, strong and side views: the silhouette-only predictor with the pre-trained generator; model card)
@@ -391,10 +417,14 @@ EOF
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v4_generated_more" ] || step all-v4
       for s in generated-v5 predictor-v5 logs-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5; do step "$s"; done ;;
+    remeasure-v6)  # the sixth session: every headline figure again with the surface measure of voxel IoU
+      RUNS2=runs/gpu; OUT2=out/v3
+      [ -d "$RUNS2/v5_full" ] || step trials-v5
+      for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 all all-gpu all-v4 trials-v5 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 all all-gpu all-v4 trials-v5 remeasure-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }

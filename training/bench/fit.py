@@ -146,6 +146,7 @@ def fit_mesh(
     delta: float = 1.0,
     shading: str = "flat",
     voxel_resolution: int = DEFAULT_VOXEL_RESOLUTION,
+    voxel_surface: bool = True,
     normal_region: str = DEFAULT_NORMAL_REGION,
     smoothing: float = DEFAULT_SMOOTHING,
     edge_range: int = 1,
@@ -167,6 +168,8 @@ def fit_mesh(
         delta: the rasterizer's Eq. 1 gradient strength.
         shading: ``"flat"`` or ``"smooth"`` normals in the rendered images (target and fit).
         voxel_resolution: grid of the final voxel IoU.
+        voxel_surface: the surface's cells count as solid (default); False: centres only
+            (``--voxel-centres``, :func:`training.evaluation.metrics.solid_voxels`).
         normal_region: where the normal term counts: ``"image"`` (the paper's Eq. 2) or
             ``"target"`` (inside the target silhouette only), see :class:`training.model.losses.MeshLoss`.
         smoothing: ``lambda`` of the large-steps parametrisation (Nicolet et al. 2021): Adam moves
@@ -291,7 +294,7 @@ def fit_mesh(
         mesh=fitted,
         target=target_n,
         silhouette_iou=sil,
-        voxel_iou=voxel_iou(fitted, target_n, voxel_resolution),
+        voxel_iou=voxel_iou(fitted, target_n, voxel_resolution, voxel_surface),
         chamfer_l1=surf["chamfer_l1"],
         normal_consistency=surf["normal_consistency"],
         seconds=seconds,
@@ -328,8 +331,12 @@ def load_target_mesh(path: str) -> Mesh:
 
 
 def _fit_options(args) -> dict:
-    """The optional fit settings given on the command line (``--normal-region``, ``--smoothing``, ``--lr``)."""
-    return {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+    """The optional fit settings given on the command line (``--normal-region``, ``--smoothing``, ``--lr``,
+    ``--voxel-centres``)."""
+    opts = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+    if getattr(args, "voxel_centres", False):
+        opts["voxel_surface"] = False
+    return opts
 
 
 def _int_arg(args, name: str, lo: int, hi: int, default: int) -> int:

@@ -80,7 +80,8 @@ SHEET_VIEWS = (0, 3, 6, 9, 12, 18)
 """Dataset views shown in ``overfit.png`` (the predictor's mesh is predicted from view 0)."""
 
 
-def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = None) -> list[dict]:
+def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = None,
+                    voxel_surface: bool = True) -> list[dict]:
     """Per shape: mean silhouette IoU over all views and voxel IoU, predicted from ``input_views``.
 
     With ``sheet``, also writes a PNG: per shape, the dataset's normal images from
@@ -109,7 +110,7 @@ def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = No
         for k, v in enumerate(views):
             world = world_vertices(verts[k], cams[v])
             ious.append(float(silhouette_ious(world, faces, cams, sils).mean()))
-            vox.append(voxel_iou(Mesh(world.astype(np.float32), faces), mesh))
+            vox.append(voxel_iou(Mesh(world.astype(np.float32), faces), mesh, surface=voxel_surface))
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(ious)),
                      "voxel_iou": float(np.mean(vox))})
         if sheet is not None and views and views[0] == 0:
@@ -155,7 +156,8 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
         fitted = res.mesh  # the normalised target frame, which the dataset's meshes are already in
         ious = silhouette_ious(fitted.vertices, fitted.faces, cams, sils)
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(ious.mean()),
-                     "voxel_iou": voxel_iou(fitted, mesh), "seconds": res.seconds})
+                     "voxel_iou": voxel_iou(fitted, mesh, surface=fit_kwargs.get("voxel_surface", True)),
+                     "seconds": res.seconds})
     try:
         cache_path.parent.mkdir(exist_ok=True)
         atomic_write_text(cache_path, json.dumps({**(cached if isinstance(cached, dict) else {}), key: rows}) + "\n")
@@ -221,9 +223,13 @@ def main_overfit(args) -> int:
     t0 = time.perf_counter()
     Trainer(cfg, progress=not args.quiet, train_set=train_set, val_set=None).run()
     train_s = time.perf_counter() - t0
-    pred_rows = score_predictor(out / "run", dataset, DEFAULT_INPUT_VIEWS, sheet=out / "overfit.png")
+    surface = not args.voxel_centres
+    pred_rows = score_predictor(out / "run", dataset, DEFAULT_INPUT_VIEWS, sheet=out / "overfit.png",
+                                voxel_surface=surface)
     fit_kwargs = {k: v for k, v in (("normal_region", args.fit_normal_region), ("smoothing", args.fit_smoothing),
                                     ("lr", args.fit_lr)) if v is not None}
+    if not surface:
+        fit_kwargs["voxel_surface"] = False  # also keys the fit cache: the two measures never mix
     fit_rows = score_fit(dataset, iters=fit_iters, views=8, seed=args.seed, progress=not args.quiet, **fit_kwargs)
     print(f"overfit: {len(shape_ids)} shapes of {data_dir}, predictor trained {train_s / 60:.1f} min this call "
           f"(run {out / 'run'}); direct fit {fit_iters} iterations per shape, "

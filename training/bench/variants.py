@@ -129,7 +129,7 @@ def _write(out: Path, record: dict) -> None:
         atomic_write_bytes(out / "variants.png", plot_png(record))
 
 
-def _template_scores(base, run: Path, test_set, max_samples: int) -> dict:
+def _template_scores(base, run: Path, test_set, max_samples: int, voxel_surface: bool = True) -> dict:
     """Test metrics of the untrained predictor, whose offsets are ~0: the template sphere, where
     every curve starts. ``run`` receives its checkpoint."""
     import torch
@@ -141,7 +141,7 @@ def _template_scores(base, run: Path, test_set, max_samples: int) -> dict:
     Trainer(base.replace(out_dir=str(run)), progress=False).save()  # the untrained predictor: offsets ~ 0
     with torch.no_grad():
         res = evaluate(run, base.data_dir, gt_normals=True, retrieval=False, max_samples=max_samples,
-                       progress=False, test_set=test_set)
+                       progress=False, test_set=test_set, voxel_surface=voxel_surface)
     return {k: float(res["mean"][k]) for k in ("voxel_iou", "silhouette_iou", "chamfer_l1")}
 
 
@@ -197,7 +197,8 @@ def main_variants(args) -> int:
     if len(test_set) == 0:
         raise SketchmeshError(f"the test split of {data} is empty")
     if "template" not in record:
-        record["template"] = _template_scores(base, out / "runs" / "_template", test_set, args.max_samples)
+        record["template"] = _template_scores(base, out / "runs" / "_template", test_set, args.max_samples,
+                                              voxel_surface=not args.voxel_centres)
     record["settings"] = {"data": str(data), "minutes": args.minutes, "points": args.points,
                           "max_samples": args.max_samples, "threads": args.threads}  # the latest call's
     for name, cfg in configs.items():
@@ -218,7 +219,7 @@ def main_variants(args) -> int:
             trained_s += time.perf_counter() - t0 + already
             with torch.no_grad():
                 res = evaluate(cfg.out_dir, data, gt_normals=True, retrieval=False, max_samples=args.max_samples,
-                               progress=False, test_set=test_set)
+                               progress=False, test_set=test_set, voxel_surface=not args.voxel_centres)
             m = res["mean"]
             point = {"variant": name, "chunk": k + 1, "train_minutes": trained_s / 60.0,
                      "iteration": trainer.iteration, "run_seconds": trainer.train_seconds,

@@ -159,10 +159,10 @@ def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarr
     return out.silhouette.numpy() > 0.5
 
 
-def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int) -> dict[str, float]:
+def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int, surface: bool = True) -> dict[str, float]:
     from training.evaluation.metrics import solid_voxels, surface_metrics
 
-    pv = solid_voxels(pred, resolution)
+    pv = solid_voxels(pred, resolution, surface)
     union = int(np.count_nonzero(pv | gt_voxels))
     iou = 1.0 if union == 0 else int(np.count_nonzero(pv & gt_voxels)) / union
     try:
@@ -197,6 +197,7 @@ def evaluate(
     max_samples: int = 0,
     augment_strength: float = 0.0,
     voxel_resolution: int = 32,
+    voxel_surface: bool = True,
     progress: bool = True,
     test_set=None,
     train_set=None,
@@ -216,6 +217,8 @@ def evaluate(
         max_samples: evaluate at most this many samples, evenly spaced (0: all).
         augment_strength: sketch augmentation of the evaluated sketches.
         voxel_resolution: voxel grid side for the IoU.
+        voxel_surface: count the cells the surface passes through as solid (the default); False:
+            cell centres inside only (``--voxel-centres``, the earlier tables' measure).
         test_set, train_set: datasets to use instead of reading ``data_dir`` (tests).
         elevation: only the samples rendered at this elevation in degrees (None: all).
 
@@ -280,7 +283,7 @@ def evaluate(
 
         if (cat, sid) not in gt_cache:
             mesh = test_set.load_mesh(cat, sid)
-            gt_cache[(cat, sid)] = (mesh, solid_voxels(mesh, voxel_resolution))
+            gt_cache[(cat, sid)] = (mesh, solid_voxels(mesh, voxel_resolution, voxel_surface))
         return gt_cache[(cat, sid)]
 
     bar = tqdm(total=len(indices), desc=f"eval {split}", unit="sample", disable=not progress)
@@ -307,7 +310,7 @@ def evaluate(
                 meshes = [Mesh(world_vertices(v, c), faces) for v, c in zip(verts, cams)]
             for it, mesh, sl in zip(items, meshes, sil):
                 gmesh, gvox = gt_mesh(it["category"], it["shape_id"])
-                rec = _pair_metrics(mesh, gmesh, gvox, voxel_resolution)
+                rec = _pair_metrics(mesh, gmesh, gvox, voxel_resolution, voxel_surface)
                 from training.evaluation.metrics import silhouette_iou
 
                 rec["silhouette_iou"] = silhouette_iou(sl, np.asarray(it["silhouette64"]) > 0.5)
@@ -333,6 +336,7 @@ def evaluate(
         "elevation": None if elevation is None else float(elevation),
         "augment_strength": float(augment_strength),
         "voxel_resolution": int(voxel_resolution),
+        "voxel_surface": bool(voxel_surface),
         "seconds": time.perf_counter() - t_start,
     }
 
@@ -348,6 +352,8 @@ def markdown_table(result: dict) -> str:
         what.append("ground-truth normals")
     elif result.get("augment_strength"):
         what.append(f"sketches augmented at strength {result['augment_strength']:g}")
+    if not result.get("voxel_surface", True):
+        what.append("voxels by cell centres only")
     lines = [f"Voxel IoU ({result['voxel_resolution']}^3) / Chamfer-L1 on the {result['split']} split, "
              + ", ".join(what), "",
              "| category | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
@@ -438,7 +444,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         args.run, args.data, args.split, gt_normals=args.gt_normals, generator_run=args.generator_run,
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
-        elevation=args.elevation,
+        elevation=args.elevation, voxel_surface=not args.voxel_centres,
     )
     table = markdown_table(result)
     print(table)

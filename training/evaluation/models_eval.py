@@ -255,6 +255,7 @@ def evaluate_models(
     augment_strength: float = 0.0,
     seed: int = 0,
     voxel_resolution: int = 32,
+    voxel_surface: bool = True,
     threads: int | None = None,
     progress: bool = True,
     engines: list | None = None,
@@ -273,6 +274,7 @@ def evaluate_models(
         augment_strength: redraw the line drawings hand-drawn at this strength (0: the stored ones).
         seed: seed of that augmentation.
         voxel_resolution: voxel grid side.
+        voxel_surface: count the cells the surface passes through (default); False: centres only.
         threads: ONNX Runtime threads per engine (None: the engine's default).
         engines: loaded engines to use instead of opening ``models`` (tests).
         elevation: only views at this elevation in degrees (None: all); shapes without one are left out.
@@ -310,7 +312,7 @@ def evaluate_models(
     labels = [label for label, _ in models]
     info = engines[0].model_info()
     template = icosphere(int(info["template_level"]), float(info["template_radius"]))
-    template_vox = solid_voxels(template, voxel_resolution)
+    template_vox = solid_voxels(template, voxel_resolution, voxel_surface)
 
     notes: list[str] = []
     searcher = None
@@ -334,7 +336,7 @@ def evaluate_models(
     bar = tqdm(shapes, desc=f"eval models ({split})", unit="mesh", disable=not progress)
     for cat, sid, shape_split in bar:
         gt = dataset.load_mesh(cat, sid)
-        gt_vox = solid_voxels(gt, voxel_resolution)
+        gt_vox = solid_voxels(gt, voxel_resolution, voxel_surface)
         cams = dataset.shape_array(cat, sid, "cameras")
         azimuths = dataset.shape_array(cat, sid, "azimuths")
         elevations = dataset.shape_array(cat, sid, "elevations")
@@ -352,7 +354,7 @@ def evaluate_models(
                 for label, engine in zip(labels, engines):
                     pred = engine.predict(sketch)
                     world = Mesh(world_vertices(np.asarray(pred.mesh.vertices, np.float64), cams[v]), pred.mesh.faces)
-                    iou[label] = _iou(solid_voxels(world, voxel_resolution), gt_vox)
+                    iou[label] = _iou(solid_voxels(world, voxel_resolution, voxel_surface), gt_vox)
             except EmptySketchError:  # a view with no ink (a degenerate mesh seen edge-on): nothing to score
                 skipped_views += 1
                 continue
@@ -361,7 +363,7 @@ def evaluate_models(
                 iou[RETRIEVAL], rec["retrieved"] = None, None
                 if hit is not None:
                     rmesh = searcher.world_mesh(hit, cams[v])
-                    iou[RETRIEVAL] = _iou(solid_voxels(rmesh, voxel_resolution), gt_vox)
+                    iou[RETRIEVAL] = _iou(solid_voxels(rmesh, voxel_resolution, voxel_surface), gt_vox)
                     rcat, rsid = searcher.keys[hit]
                     rec["retrieved"] = f"{rcat}/{rsid} view {searcher.views[hit]}"
             per_view.append(rec)
@@ -404,6 +406,7 @@ def evaluate_models(
                      "vertices": int(template.num_vertices)},
         "augment_strength": float(augment_strength),
         "voxel_resolution": int(voxel_resolution),
+        "voxel_surface": bool(voxel_surface),
         "seconds": time.perf_counter() - t_start,
     }
 
@@ -417,8 +420,9 @@ def markdown_report(result: dict) -> str:
     cols = result["columns"]
     aug = f", hand-drawn at strength {result['augment_strength']:g}" if result["augment_strength"] > 0 else ""
     views = result["views_per_mesh"] or "all"
+    cells = "" if result.get("voxel_surface", True) else ", voxels by cell centres only"
     lines = [f"Voxel IoU ({result['voxel_resolution']}^3) on the {result['split']} split of {result['data']}: "
-             f"{result['meshes']} meshes, {views} views each{aug}", "",
+             f"{result['meshes']} meshes, {views} views each{aug}{cells}", "",
              "| mesh | category | " + " | ".join(cols) + " |", "|---|---|" + "---:|" * len(cols)]
     for r in result["rows"]:
         lines.append(f"| {r['shape_id']} | {r['category']} | " + " | ".join(_cell(r["iou"][c]) for c in cols) + " |")
@@ -456,7 +460,7 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     result = evaluate_models(folders, args.data, args.split, views=views, retrieval=not args.no_retrieval,
                              retrieval_data=args.retrieval_data, max_samples=args.max_samples,
                              augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution,
-                             threads=threads, progress=not args.quiet, engines=engines, elevation=args.elevation)
+                             voxel_surface=not args.voxel_centres, threads=threads, progress=not args.quiet, engines=engines, elevation=args.elevation)
     table = markdown_report(result)
     print(table)
     stem = f"eval_models_{args.split}"

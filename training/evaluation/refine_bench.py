@@ -60,6 +60,7 @@ def run_refine_bench(
     threads: int = 2,
     styles: tuple[str, ...] = tuple(STYLES),
     voxel_resolution: int = 32,
+    voxel_surface: bool = True,
     self_intersections: bool = True,
     progress: bool = True,
 ) -> list[dict]:
@@ -111,7 +112,7 @@ def run_refine_bench(
             key = (it["category"], it["shape_id"])
             if key not in gt:
                 m = data.load_mesh(*key)
-                gt[key] = (m, solid_voxels(m, voxel_resolution))
+                gt[key] = (m, solid_voxels(m, voxel_resolution, voxel_surface))
             gmesh, gvox = gt[key]
             target, source = target_outline(sketch, pred.normals)
             cam = fit_camera(pred.mesh, target)  # what refine_mesh uses when given no camera
@@ -127,7 +128,7 @@ def run_refine_bench(
                 px_true, _ = pixel_coords(mesh.vertices, true_cam, gt_sil.shape[0])
                 sil_true = render_silhouette(px_true, mesh.faces, gt_sil.shape[0])
                 world = Mesh(world_vertices(np.asarray(mesh.vertices, np.float64), cam16), mesh.faces)
-                rec = _pair_metrics(world, gmesh, gvox, voxel_resolution)
+                rec = _pair_metrics(world, gmesh, gvox, voxel_resolution, voxel_surface)
                 rec.update(category=it["category"], sil_iou_target=silhouette_iou(sil, target),
                            sil_iou_gt=silhouette_iou(sil_true, gt_sil), target_is_drawing=source == "drawing",
                            warning=res.warning is not None and n > 0, note=res.note is not None and n > 0,
@@ -206,7 +207,8 @@ def main_refine_bench(args: argparse.Namespace) -> int:
     load_start = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     records = run_refine_bench(args.data, steps=tuple(args.steps), models_dir=getattr(args, "models", None), max_samples=args.max_samples,
                                threads=args.threads, styles=tuple(args.styles),
-                               self_intersections=not args.no_intersections, progress=not args.quiet)
+                               self_intersections=not args.no_intersections, progress=not args.quiet,
+                               voxel_surface=not args.voxel_centres)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(records)

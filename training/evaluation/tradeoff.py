@@ -90,6 +90,7 @@ def run_tradeoff(
     threads: int = 2,
     warmup: int = 2,
     voxel_resolution: int = 32,
+    voxel_surface: bool = True,
     work_dir: str | Path | None = None,
     progress: bool = True,
 ) -> list[dict]:
@@ -126,7 +127,7 @@ def run_tradeoff(
         key = (it["category"], it["shape_id"])
         if key not in gt:
             mesh = test.load_mesh(*key)
-            gt[key] = (mesh, solid_voxels(mesh, voxel_resolution))
+            gt[key] = (mesh, solid_voxels(mesh, voxel_resolution, voxel_surface))
 
     tmp_ctx = tempfile.TemporaryDirectory(prefix="sketchmesh-tradeoff-") if work_dir is None else None
     work = Path(tmp_ctx.name if tmp_ctx else work_dir)
@@ -159,7 +160,7 @@ def run_tradeoff(
                     mesh = resample_level(pred.mesh, model_level, lv)
                     times[lv].append((t_model + time.perf_counter() - t1) * 1e3)
                     world = Mesh(world_vertices(np.asarray(mesh.vertices, np.float64), cam), mesh.faces)
-                    rec = _pair_metrics(world, gmesh, gvox, voxel_resolution)
+                    rec = _pair_metrics(world, gmesh, gvox, voxel_resolution, voxel_surface)
                     rec["category"] = it["category"]
                     per_level[lv].append(rec)
             for lv in run_levels:
@@ -244,7 +245,8 @@ def plot(records: list[dict], path: str | Path, bundled: str | None = None) -> N
 def main_tradeoff(args: argparse.Namespace) -> int:
     variants = [parse_variant(s) for s in args.variant]
     records = run_tradeoff(variants, args.data, precisions=tuple(args.precisions), levels=tuple(args.levels or ()),
-                           max_samples=args.max_samples, threads=args.threads, progress=not args.quiet)
+                           max_samples=args.max_samples, threads=args.threads, progress=not args.quiet,
+                           voxel_surface=not args.voxel_centres)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(records, args.bundled)

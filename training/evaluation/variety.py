@@ -36,12 +36,12 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
     return 1.0 if union == 0 else int(np.count_nonzero(a & b)) / union
 
 
-def shape_voxels(mesh: Mesh, resolution: int = 32) -> np.ndarray:
-    """(R, R, R) bool solid voxels of ``mesh`` after the dataset's normalisation."""
+def shape_voxels(mesh: Mesh, resolution: int = 32, surface: bool = True) -> np.ndarray:
+    """(R, R, R) bool solid voxels of ``mesh`` after the dataset's normalisation (``surface``: see solid_voxels)."""
     from training.evaluation.metrics import solid_voxels
 
     m = Mesh(normalize_vertices(mesh.vertices).astype(np.float32), mesh.faces)
-    return solid_voxels(m, resolution)
+    return solid_voxels(m, resolution, surface)
 
 
 def nearest_train_iou(
@@ -50,6 +50,7 @@ def nearest_train_iou(
     make: Callable[[str, int], Mesh] | None = None,
     split: Callable[[str, int], str] | None = None,
     resolution: int = 32,
+    surface: bool = True,
 ) -> dict[str, dict[str, float]]:
     """Per category, the mean best voxel IoU of held-out shapes against the train shapes.
 
@@ -61,6 +62,7 @@ def nearest_train_iou(
         split: ``split(category, index) -> "train" | "val" | "test"``; default
             :func:`training.data.shapes.split_of`.
         resolution: voxel grid side.
+        surface: the surface's cells count as solid (default); False: centres only.
 
     Returns:
         ``{category: {"test": mean over test shapes, "held_out": mean over val + test shapes,
@@ -74,7 +76,7 @@ def nearest_train_iou(
     cats = list(shapes.CATEGORIES if categories is None else categories)
     out: dict[str, dict[str, float]] = {}
     for c in cats:
-        vox = {i: shape_voxels(make(c, i), resolution) for i in range(int(n))}
+        vox = {i: shape_voxels(make(c, i), resolution, surface) for i in range(int(n))}
         splits = {i: split(c, i) for i in vox}
         train = [i for i in vox if splits[i] == "train"]
         best = {i: max((_iou(vox[i], vox[j]) for j in train), default=float("nan")) for i in vox if splits[i] != "train"}
@@ -118,7 +120,8 @@ def main_variety(args) -> int:
 
         bar = tqdm(cats, desc="variety", unit="category", leave=False)
     for c in bar if bar is not None else cats:
-        table[c] = nearest_train_iou(args.shapes_per_category, [c], resolution=args.voxel_resolution)[c]
+        table[c] = nearest_train_iou(args.shapes_per_category, [c], resolution=args.voxel_resolution,
+                                    surface=not args.voxel_centres)[c]
     keys = ("test", "held_out", "n_train", "n_test", "n_held_out")
     table["mean"] = {k: float(np.nanmean([table[c][k] for c in cats])) for k in keys}
     md = variety_markdown(table)
