@@ -508,3 +508,44 @@ def test_widened_compact_predictor_computes_the_same_function_and_every_new_weig
         CompactMeshPredictor(2, base_channels=16, hidden=48, latent=24).load_widened(small.state_dict())
     with pytest.raises(ValueError, match="not a compact predictor"):
         big.load_widened({"x": torch.zeros(1)})
+
+
+def test_deepened_compact_predictor_starts_as_the_same_function_and_its_blocks_learn():
+    """Residual encoder blocks start as the identity: a trained predictor loaded into a deeper one computes the same
+    offsets, in eval and train mode; every block's zero convolution gets a gradient at the first step."""
+    torch.manual_seed(1)
+    shallow = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16)
+    with torch.no_grad():
+        for m in shallow.modules():
+            if isinstance(m, torch.nn.Linear):
+                m.weight.normal_(0, 0.3)
+            if isinstance(m, torch.nn.BatchNorm2d):
+                m.running_mean.normal_(0, 0.1)
+                m.running_var.uniform_(0.5, 2.0)
+    deep = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, blocks=2)
+    assert deep.load_grown(shallow.state_dict()) is None
+    wide_deep = CompactMeshPredictor(2, base_channels=8, hidden=48, latent=24, blocks=1)
+    assert wide_deep.load_grown(shallow.state_dict()) == (16, 32)  # deepened and widened at once
+    x = torch.rand(3, 3, 64, 64)
+    for mode in ("eval", "train"):
+        for net in (shallow, deep, wide_deep):
+            getattr(net, mode)()
+        ref = shallow(x)
+        for net in (deep, wide_deep):
+            for got, want in zip(net(x), ref):
+                torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
+    assert sum(p.numel() for p in deep.blocks.parameters()) == 2 * sum(
+        2 * 9 * c * c + 3 * c for c in (8, 16, 32, 64))  # two 3x3 convs (one with bias) and a BatchNorm per block
+    local, glob = deep(x)
+    (local.square().sum() + glob.sum()).backward()
+    for stage in deep.blocks:
+        for block in stage:
+            assert block.body[3].weight.grad.abs().sum() > 0
+    with pytest.raises(ValueError, match="encoder blocks this predictor lacks"):
+        shallow.load_grown(deep.state_dict())
+    with pytest.raises(ValueError, match=r"blocks must be in \[0, 4\]"):
+        CompactMeshPredictor(2, blocks=5)
+    with pytest.raises(ValueError, match="compact-predictor option"):
+        build_predictor("softras", blocks=1)
+    with pytest.raises(ValueError, match="predictor_blocks needs predictor_arch compact"):
+        TrainConfig(predictor_arch="softras", predictor_blocks=1)

@@ -497,3 +497,30 @@ def test_init_mesh_widens_a_narrower_compact_predictor(data_dir, tmp_path, capsy
               "--init-mesh", str(small), *TINY_FLAGS, "--predictor-hidden", "16"])
     err = capsys.readouterr().err
     assert rc == 2 and "predictor_hidden 32 there, 16 here" in err and "Traceback" not in err
+
+
+def test_init_mesh_deepens_a_compact_predictor_and_it_exports(data_dir, tmp_path, capsys):
+    """--init-mesh from a run without encoder blocks into --predictor-blocks 1: same function at the start; the deeper
+    predictor exports to ONNX (parity-checked against torch); the other way round is refused in one line."""
+    from training.export.to_onnx import export_models
+
+    small = tmp_path / "small"
+    assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(small), "--iters", "1", "--ckpt-every", "1",
+                *TINY_FLAGS]) == 0, capsys.readouterr().err
+    deep = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "deep"), iters=1,
+                               init_mesh=str(small), **{**TINY, "predictor_blocks": 1}), progress=False)
+    plain = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "plain"), iters=1,
+                                init_mesh=str(small), **TINY), progress=False)
+    a, b = deep.models["predictor"].eval(), plain.models["predictor"].eval()
+    assert a.num_blocks == 1 and b.blocks is None
+    x = torch.rand(2, 3, 64, 64)
+    for u, v in zip(a(x), b(x)):
+        torch.testing.assert_close(u, v, rtol=1e-5, atol=1e-6)
+    deep.run()
+    reports = export_models(None, deep.models["predictor"], tmp_path / "onnx", config_json=deep.cfg.to_json(),
+                            code_version="t", sketches=torch.zeros(1, 1, 256, 256), normals64=torch.rand(2, 3, 64, 64))
+    assert len(reports) == 1 and (tmp_path / "onnx" / "mesh_predictor.onnx").stat().st_size > 0
+    rc = cli(["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "bad"), "--iters", "1",
+              "--init-mesh", str(tmp_path / "deep"), *TINY_FLAGS])
+    err = capsys.readouterr().err
+    assert rc == 2 and "predictor_blocks 1 there, 0 here" in err and "Traceback" not in err

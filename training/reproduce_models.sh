@@ -14,7 +14,8 @@
 #   generated sets (a second drawing of every view: another seed, full-strength augmentation) and with doubled fully
 #   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 logs-v5 eval-*-v5 eval-train-v5).
 # The surface measure of voxel IoU (remeasure-v6, into OUT6 [out/v6]): the headline figures again, with the cells a
-#   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6).
+#   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6);
+#   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 eval-deep-*-v6).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -265,6 +266,21 @@ EOF
       sketchmesh eval "${CENTRES[@]}" "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/continued_2d" --no-retrieval \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
+    predictor-v6)  # the encoder's depth, trials-v5's protocol: the fourth bundled predictor continued 6,000 iterations
+      # (V5_MINUTES [22] at most, alone on two threads) with one residual block (two 3x3 convolutions) after each
+      # strided convolution, deepened so it starts as the same function; against trials-v5's control
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 \
+        --iters 6000 --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
+        --out "$RUNS2/v6_deep" --input-normals normals16 --predictor-blocks 1 ;;
+    eval-deep-v6|eval-deep-strong-v6|eval-deep-side-v6|eval-deep-gt-v6)  # the deeper encoder against the control
+      eval_case "${1/deep-/}"
+      sketchmesh eval "$RUNS2/v6_deep" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v4_generated_last" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" \
+        --threads 2 --out "$OUT6/deep_$EVAL_NAME" ;;
+    eval-deep-train-v6)  # and on clean sketches of training views (does depth fit the training set better?)
+      sketchmesh eval "$RUNS2/v6_deep" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v4_generated_last" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
+        --out "$OUT6/deep_eval_train" ;;
     eval-v6|eval-strong-v6|eval-side-v6|eval-gt-v6)  # the surface measure of voxel IoU (a thin part keeps its
       # cells): the bundled predictor, the third models', the equal-time control and full loss of trials-v5, retrieval
       eval_case "$1"
@@ -421,10 +437,16 @@ EOF
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
       for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6; do step "$s"; done ;;
+    deep-v6)  # the sixth session's trial: a deeper encoder at trials-v5's protocol (nothing shipped unless it wins)
+      RUNS2=runs/gpu; OUT2=out/v3
+      [ -d "$RUNS2/v4_generated_last" ] || step trials-v5
+      for s in predictor-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6; do
+        step "$s"
+      done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 all all-gpu all-v4 trials-v5 remeasure-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 predictor-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }

@@ -80,11 +80,11 @@ def _is_main_rank() -> bool:
 INIT_FIELDS = {
     "generator": ("base_channels", "generator_arch"),
     "predictor": ("predictor_arch", "template_level", "predictor_channels", "predictor_hidden", "predictor_latent",
-                  "predictor_modes"),
+                  "predictor_modes", "predictor_blocks"),
 }
 """Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
-WIDENABLE = ("predictor_hidden", "predictor_latent")
-"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_widened``)."""
+WIDENABLE = ("predictor_hidden", "predictor_latent", "predictor_blocks")
+"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_grown``)."""
 
 
 def _check_init_run(run: str, flag: str, role: str, cfg) -> None:

@@ -74,6 +74,8 @@ class TrainConfig:
         predictor_channels, predictor_hidden, predictor_latent: mesh predictor widths (SoftRas: 64, 1024, 512;
             default 32, 512, 256).
         predictor_modes: size M of the compact predictor's offset basis (0: one mode per vertex).
+        predictor_blocks: residual blocks after each strided convolution of the compact predictor's
+            encoder (0: none). ``--init-mesh`` from a run with fewer deepens it as the same function.
         template_level: icosphere level (3 -> 642 vertices, the paper's).
         predictor_local_bound: "tanh" or "clamp" bound of the softras predictor's local offsets (see
             :class:`training.model.networks.MeshPredictor`; the compact predictor's head is linear).
@@ -151,6 +153,7 @@ class TrainConfig:
     predictor_hidden: int = 512
     predictor_latent: int = 256
     predictor_modes: int = 0
+    predictor_blocks: int = 0
     template_level: int = 3
     predictor_smoothing: float = 16.0
     predictor_local_bound: str = "tanh"
@@ -221,6 +224,10 @@ class TrainConfig:
                      "template_level", "seed", "batch", "predictor_modes", "lr_warmup"):
             if int(getattr(self, name)) < 0:
                 problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0 <= int(self.predictor_blocks) <= 4:
+            problems.append(f"predictor_blocks must be in [0, 4], got {self.predictor_blocks}")
+        elif self.predictor_blocks and self.predictor_arch != "compact":
+            problems.append("predictor_blocks needs predictor_arch compact")
         if not 0 <= self.template_level <= 5:
             problems.append(f"template_level must be in [0, 5], got {self.template_level}")
         for name in ("lr_g", "lr_d", "lr_mesh", "delta", "soft_sigma"):

@@ -79,7 +79,7 @@ SURFACE_POINTS = 1024
 """Points per mesh in the Chamfer term of ``supervision="3d"`` (the diagnostic ceiling)."""
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "generator_arch", "predictor_arch", "predictor_channels",
-                      "predictor_hidden", "predictor_latent", "predictor_modes", "template_level",
+                      "predictor_hidden", "predictor_latent", "predictor_modes", "predictor_blocks", "template_level",
                       "predictor_smoothing", "predictor_local_bound", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes or
 the function the parameters were trained in)."""
@@ -159,6 +159,7 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
             cfg.predictor_arch, template_level=cfg.template_level, channels=cfg.predictor_channels,
             hidden=cfg.predictor_hidden, latent=cfg.predictor_latent, input_size=cfg.render_size,
             smoothing=cfg.predictor_smoothing, local_bound=cfg.predictor_local_bound, modes=cfg.predictor_modes,
+            blocks=cfg.predictor_blocks,
         )
     return models
 
@@ -467,16 +468,17 @@ class Trainer:
             self._event(f"initialised {[n for n in names if n in self.models]} from {run}")
 
     def _load_init(self, name: str, weights: dict, run: str) -> tuple[int, int] | None:
-        """Load ``weights`` into model ``name``; a narrower compact predictor is widened (old widths returned)."""
+        """Load ``weights`` into model ``name``; a narrower or shallower compact predictor is grown (old widths
+        returned when widened)."""
         model = self.models[name]
         try:
             model.load_state_dict(weights)
             return None
         except RuntimeError as exc:
-            if not hasattr(model, "load_widened"):
+            if not hasattr(model, "load_grown"):
                 raise TrainingError(f"{name} weights of run {run} do not fit this config: {exc}") from None
             try:
-                return model.load_widened(weights)
+                return model.load_grown(weights)
             except ValueError as why:
                 raise TrainingError(f"{name} weights of run {run} do not fit this config: {why}") from None
 

@@ -393,6 +393,26 @@ def laplacian_basis(faces: np.ndarray, num_vertices: int, modes: int, lam: float
     return (phi * (math.sqrt(num_vertices) / (1.0 + lam * mu))[None, :]).astype(np.float32)
 
 
+MAX_ENCODER_BLOCKS = 4
+"""Most residual blocks per encoder stage of :class:`CompactMeshPredictor`."""
+
+
+class _ResidualBlock(nn.Module):
+    """``x + conv(ReLU(BN(conv(x))))`` with 3x3 convolutions; the last one starts at zero, so a new block is the identity."""
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Conv2d(channels, channels, 3, 1, 1, bias=False), nn.BatchNorm2d(channels), nn.ReLU(),
+            nn.Conv2d(channels, channels, 3, 1, 1),
+        )
+        nn.init.zeros_(self.body[3].weight)
+        nn.init.zeros_(self.body[3].bias)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x + self.body(x)
+
+
 class CompactMeshPredictor(_TemplateOffsets):
     """Normal image (N, 3, 64, 64) -> icosphere offsets, sized for a laptop CPU (``arch="compact"``).
 
@@ -420,6 +440,9 @@ class CompactMeshPredictor(_TemplateOffsets):
         modes: M, basis size (0 = every vertex, V).
         smoothing: lambda of the basis's spectral damping ``1 / (1 + lambda mu)``.
         input_size: side of the input image (64; must be a multiple of 16).
+        blocks: residual blocks (two 3x3 convolutions each) after each of the four strided
+            convolutions, at 32, 16, 8 and 4 pixels: a deeper encoder. A block starts as the identity
+            (its last convolution is zero), so :meth:`load_grown` can deepen a trained predictor.
     """
 
     def __init__(
@@ -433,8 +456,11 @@ class CompactMeshPredictor(_TemplateOffsets):
         input_size: int = PREDICTOR_INPUT_SIZE,
         local_scale: float = LOCAL_OFFSET_SCALE,
         global_scale: float = GLOBAL_OFFSET_SCALE,
+        blocks: int = 0,
     ) -> None:
         super().__init__()
+        if not 0 <= int(blocks) <= MAX_ENCODER_BLOCKS:
+            raise ValueError(f"blocks must be in [0, {MAX_ENCODER_BLOCKS}], got {blocks}")
         if input_size % 16:
             raise ValueError(f"input_size must be a multiple of 16, got {input_size}")
         template = self._init_template(template_level, input_size, local_scale, global_scale, smoothing)
@@ -456,6 +482,10 @@ class CompactMeshPredictor(_TemplateOffsets):
             layers += [nn.Conv2d(cin, cout, 4, 2, 1, bias=False), nn.BatchNorm2d(cout), nn.ReLU()]
         side = input_size // 16
         self.encoder = nn.Sequential(*layers, nn.Flatten(), nn.Linear(8 * c * side * side, latent), nn.ReLU())
+        self.num_blocks = int(blocks)
+        self.blocks = nn.ModuleList(
+            [nn.Sequential(*[_ResidualBlock(ch) for _ in range(self.num_blocks)]) for ch in (c, 2 * c, 4 * c, 8 * c)]
+        ) if self.num_blocks else None
         self.decoder = nn.Sequential(nn.Linear(latent, hidden), nn.ReLU())
         self.head_gain = 1.0 / math.sqrt(hidden)
         self.local_head = nn.Linear(hidden, self.modes * 3)
@@ -525,10 +555,42 @@ class CompactMeshPredictor(_TemplateOffsets):
         self.load_state_dict(merged)
         return int(old_latent), int(old_hidden)
 
+    @torch.no_grad()
+    def load_grown(self, state_dict: dict) -> tuple[int, int] | None:
+        """Load a compact predictor with fewer encoder blocks and/or narrower FC layers as the same function.
+
+        Missing residual blocks keep their identity initialisation (:class:`_ResidualBlock`); narrower
+        fully connected layers are widened (:meth:`load_widened`). Returns the old (latent, hidden)
+        when widened, else None.
+
+        Raises:
+            ValueError: the weights have blocks this predictor lacks, or do not fit otherwise.
+        """
+        own = self.state_dict()
+        extra = sorted(k for k in state_dict if k.startswith("blocks.") and k not in own)
+        if extra:
+            raise ValueError(f"cannot load: the weights have encoder blocks this predictor lacks ({extra[0]})")
+        merged = dict(state_dict)
+        merged.update({k: v for k, v in own.items() if k.startswith("blocks.") and k not in state_dict})
+        try:
+            self.load_state_dict(merged)
+            return None
+        except RuntimeError:
+            return self.load_widened(merged)
+
+    def encode(self, normals: torch.Tensor) -> torch.Tensor:
+        """The code (N, latent): the four strided stages (each followed by its residual blocks), then the FC layer."""
+        if self.blocks is None:
+            return self.encoder(normals)
+        x = normals
+        for stage, blocks in enumerate(self.blocks):
+            x = blocks(self.encoder[3 * stage:3 * stage + 3](x))
+        return self.encoder[12:](x)
+
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
         _check_image(normals, 3, self.input_size, "normals")
-        h = self.decoder(self.encoder(normals)) * self.head_gain
+        h = self.decoder(self.encode(normals)) * self.head_gain
         coeff = self.local_head(h).view(-1, self.modes, 3)
         local = self.local_scale * torch.matmul(self.basis.to(coeff.dtype), coeff)
         bound = LOCAL_CLAMP * self.local_scale
@@ -539,14 +601,16 @@ class CompactMeshPredictor(_TemplateOffsets):
 
 def build_predictor(arch: str = "softras", *, template_level: int = 3, channels: int = 64, hidden: int = 1024,
                     latent: int = 512, input_size: int = PREDICTOR_INPUT_SIZE, smoothing: float = PREDICTOR_SMOOTHING,
-                    local_bound: str = "tanh", modes: int = 0) -> nn.Module:
+                    local_bound: str = "tanh", modes: int = 0, blocks: int = 0) -> nn.Module:
     """The mesh predictor of architecture ``arch`` (:data:`PREDICTOR_ARCHS`)."""
     if arch == "softras":
+        if blocks:
+            raise ValueError("encoder blocks are a compact-predictor option (predictor_arch compact)")
         return MeshPredictor(template_level, channels, hidden, latent, input_size, smoothing=smoothing,
                              local_bound=local_bound)
     if arch == "compact":
         return CompactMeshPredictor(template_level, channels, hidden, latent, modes=modes, smoothing=smoothing,
-                                    input_size=input_size)
+                                    input_size=input_size, blocks=blocks)
     raise ValueError(f"predictor arch must be one of {PREDICTOR_ARCHS}, got {arch!r}")
 
 
