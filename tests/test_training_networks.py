@@ -535,12 +535,22 @@ def test_deepened_compact_predictor_starts_as_the_same_function_and_its_blocks_l
             for got, want in zip(net(x), ref):
                 torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
     assert sum(p.numel() for p in deep.blocks.parameters()) == 2 * sum(
-        2 * 9 * c * c + 3 * c for c in (8, 16, 32, 64))  # two 3x3 convs (one with bias) and a BatchNorm per block
-    local, glob = deep(x)
-    (local.square().sum() + glob.sum()).backward()
+        2 * 9 * c * c + 3 * c + 1 for c in (8, 16, 32, 64))  # two 3x3 convs (one with bias), a BatchNorm, the gate
+    # the gates get a gradient at the first step, the blocks' convolutions once their gate has moved
+    opt = torch.optim.Adam(deep.parameters(), lr=1e-3)
+    for step in range(2):
+        opt.zero_grad()
+        local, glob = deep(x)
+        (local.square().sum() + glob.sum()).backward()
+        for stage in deep.blocks:
+            for block in stage:
+                assert block.gain.grad.abs() > 0
+                assert (block.body[3].weight.grad.abs().sum() > 0) == (step == 1)
+        opt.step()
+    # Adam moves a gate by at most about lr per step: after two steps each is within 2 lr of 0 (and has moved)
     for stage in deep.blocks:
         for block in stage:
-            assert block.body[3].weight.grad.abs().sum() > 0
+            assert 0 < abs(float(block.gain)) <= 2e-3 * (1 + 1e-6)
     with pytest.raises(ValueError, match="encoder blocks this predictor lacks"):
         shallow.load_grown(deep.state_dict())
     with pytest.raises(ValueError, match=r"blocks must be in \[0, 4\]"):

@@ -266,11 +266,12 @@ EOF
       sketchmesh eval "${CENTRES[@]}" "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/continued_2d" --no-retrieval \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
-    predictor-v6)  # the encoder's depth, trials-v5's protocol: the fourth bundled predictor continued 6,000 iterations
-      # (V5_MINUTES [22] at most, alone on two threads) with one residual block (two 3x3 convolutions) after each
-      # strided convolution, deepened so it starts as the same function; against trials-v5's control
+    predictor-v6)  # the encoder's depth at equal time: the fourth bundled predictor continued, alone on two threads,
+      # with one residual block (two 3x3 convolutions) after each strided convolution, deepened so it starts as the
+      # same function; against trials-v5's control (6,000 iterations in 19.4 min). The blocks slow a step from 4.5 to
+      # 2.9 iterations per second, so DEEP_ITERS [3400] fills the same 19.4 minutes with a complete cosine decay
       sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 \
-        --iters 6000 --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
+        --iters "${DEEP_ITERS:-3400}" --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
         --out "$RUNS2/v6_deep" --input-normals normals16 --predictor-blocks 1 ;;
     eval-deep-v6|eval-deep-strong-v6|eval-deep-side-v6|eval-deep-gt-v6)  # the deeper encoder against the control
       eval_case "${1/deep-/}"
