@@ -267,3 +267,21 @@ def test_silhouette_iou_rectangles_and_edge_cases():
     assert silhouette_iou(a, np.zeros_like(a)) == 0.0
     with pytest.raises(ValueError, match=r"\(10, 12\) and \(12, 10\)"):
         silhouette_iou(a, a.T)
+
+
+@pytest.mark.parametrize("argv", [
+    ["eval", "RUN", "--data", "D"],
+    ["eval", "--models", "bundled", "--data", "D"],
+    ["bench", "fit", "--target", "m.obj"],
+    ["bench", "overfit", "--out", "O"],
+    ["bench", "variants", "--data", "D", "--out", "O", "--variant", "a"],
+    ["bench", "variety"],
+    ["bench", "refine", "--data", "D", "--out", "O"],
+    ["bench", "tradeoff", "--data", "D", "--variant", "a=M", "--out", "O"],
+])
+def test_every_command_that_scores_voxels_takes_voxel_centres(argv):
+    from sketchmesh.cli import build_parser
+
+    parser = build_parser()
+    assert parser.parse_args(argv).voxel_centres is False
+    assert parser.parse_args([*argv, "--voxel-centres"]).voxel_centres is True
