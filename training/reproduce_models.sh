@@ -14,8 +14,9 @@
 #   generated sets (a second drawing of every view: another seed, full-strength augmentation) and with doubled fully
 #   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 logs-v5 eval-*-v5 eval-train-v5).
 # The surface measure of voxel IoU (remeasure-v6, into OUT6 [out/v6]): the headline figures again, with the cells a
-#   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6);
-#   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 eval-deep-*-v6).
+#   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6
+#   variety-v6 fit-v6);
+#   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 logs-v6 eval-deep-*-v6).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -266,13 +267,38 @@ EOF
       sketchmesh eval "${CENTRES[@]}" "$RUNS2/v5_wide" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --baseline-run "$RUNS2/continued_2d" --no-retrieval \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
+    variety-v6)  # how near a held-out shape's nearest training shape is (the bound on retrieval), surface measure
+      mkdir -p "$OUT6"
+      sketchmesh bench variety --shapes-per-category 100 --quiet --json "$OUT6/variety.json" ;;
+    fit-v6)  # the direct-fit ceiling (one mesh optimised per shape, 8 views) on the first training shape of every
+      # category, surface measure
+      mkdir -p "$OUT6"
+      sketchmesh bench fit --procedural 1 --json "$OUT6/fit.json" ;;
     predictor-v6)  # the encoder's depth at equal time: the fourth bundled predictor continued, alone on two threads,
       # with one residual block (two 3x3 convolutions) after each strided convolution, deepened so it starts as the
-      # same function; against trials-v5's control (6,000 iterations in 19.4 min). The blocks slow a step from 4.5 to
-      # 2.9 iterations per second, so DEEP_ITERS [3400] fills the same 19.4 minutes with a complete cosine decay
+      # same function; against trials-v5's control (6,000 iterations in 19.4 min). The blocks slow a step from 5.2 to
+      # 3.2 iterations per second, so DEEP_ITERS [3400] (17.8 min) fits the same time with a complete cosine decay
       sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 \
         --iters "${DEEP_ITERS:-3400}" --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
         --out "$RUNS2/v6_deep" --input-normals normals16 --predictor-blocks 1 ;;
+    logs-v6)  # the deeper run's training log against the control's (rate, silhouette term over the last 1,000
+      # iterations) and how far its blocks' gates opened
+      python3 - "$RUNS2" <<'EOF'
+import csv, sys, numpy as np
+from pathlib import Path
+from training.loop.checkpoint import load_latest_checkpoint
+runs = Path(sys.argv[1])
+for name in ("v4_generated_last", "v6_deep"):
+    with open(runs / name / "log.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    it = np.array([int(r["iteration"]) for r in rows])
+    sil = np.mean([float(r["mesh_silhouette"]) for r, i in zip(rows, it) if i > it.max() - 1000])
+    print(f"{name}: {it.max()} iterations in {float(rows[-1]['wall_s']) / 60:.1f} min "
+          f"({it.max() / float(rows[-1]['wall_s']):.2f} it/s); silhouette term over the last 1,000: {sil:.4f}")
+sd = load_latest_checkpoint(runs / "v6_deep")["models"]["predictor"]
+print("v6_deep gates:", ", ".join(f"{k} {float(v):+.5f}" for k, v in sd.items() if k.endswith(".gain")))
+EOF
+      ;;
     eval-deep-v6|eval-deep-strong-v6|eval-deep-side-v6|eval-deep-gt-v6)  # the deeper encoder against the control
       eval_case "${1/deep-/}"
       sketchmesh eval "$RUNS2/v6_deep" --data "$DATA2" --generator-run "$RUNS2/normals16" \
@@ -437,17 +463,19 @@ EOF
     remeasure-v6)  # the sixth session: every headline figure again with the surface measure of voxel IoU
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
-      for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6; do step "$s"; done ;;
+      for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 variety-v6 fit-v6; do
+        step "$s"
+      done ;;
     deep-v6)  # the sixth session's trial: a deeper encoder at trials-v5's protocol (nothing shipped unless it wins)
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v4_generated_last" ] || step trials-v5
-      for s in predictor-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6; do
+      for s in predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6; do
         step "$s"
       done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 predictor-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }
