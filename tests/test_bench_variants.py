@@ -109,3 +109,10 @@ def test_bench_variants_bad_input(data, tmp_path, capsys):
         assert main(argv) != 0
         err = capsys.readouterr().err
         assert words in err and "Traceback" not in err, (argv, err)
+    # a record scored with one voxel measure is not resumed with the other (old records: cell centres)
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "variants.json").write_text(json.dumps({"format": 1, "points": [], "template": {"voxel_iou": 0.1}}))
+    assert main(["bench", "variants", "--out", str(old), "--data", str(data), "--variant", "a", "--quiet"]) != 0
+    err = capsys.readouterr().err
+    assert "scored with voxels by cell centres" in err and "add --voxel-centres" in err and "Traceback" not in err

@@ -285,3 +285,17 @@ def test_every_command_that_scores_voxels_takes_voxel_centres(argv):
     parser = build_parser()
     assert parser.parse_args(argv).voxel_centres is False
     assert parser.parse_args([*argv, "--voxel-centres"]).voxel_centres is True
+
+
+def test_surface_voxels_split_one_large_face_across_chunks(monkeypatch):
+    """A chunk may end inside a face's candidates: one slanted face across the cube gives the cells that clipping
+    gives, whatever the chunk size."""
+    import training.evaluation.metrics as metrics
+
+    v = np.array([[-0.49, -0.45, -0.4], [0.48, -0.3, 0.45], [-0.2, 0.47, 0.1]])
+    tri = Mesh(v, np.array([[0, 1, 2]]))
+    whole = surface_voxels(tri, 12)
+    np.testing.assert_array_equal(whole, _clip_hits(np.asarray(tri.vertices, np.float64)[None], 12))
+    monkeypatch.setattr(metrics, "SURFACE_CANDIDATE_CHUNK", 101)  # 12^3 candidates: 18 chunks, one face
+    np.testing.assert_array_equal(surface_voxels(tri, 12), whole)
+    assert whole.sum() > 12 * 12 // 2

@@ -140,7 +140,10 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
     from training.evaluation.metrics import voxel_iou
 
     shapes = [sid for _, sid, _ in dataset.shapes()]
-    key = json.dumps({"shapes": shapes, "iters": iters, "views": views, "seed": seed, **fit_kwargs}, sort_keys=True)
+    # the voxel measure is always part of the key: rows scored by cell centres are never reused for the surface measure
+    measure = "surface" if fit_kwargs.get("voxel_surface", True) else "centres"
+    key = json.dumps({"shapes": shapes, "iters": iters, "views": views, "seed": seed, "voxels": measure,
+                      **{k: v for k, v in fit_kwargs.items() if k != "voxel_surface"}}, sort_keys=True)
     cache_path = Path(dataset.root) / CACHE_DIR / "overfit_fit.json"
     try:
         cached = json.loads(cache_path.read_text())
@@ -229,7 +232,7 @@ def main_overfit(args) -> int:
     fit_kwargs = {k: v for k, v in (("normal_region", args.fit_normal_region), ("smoothing", args.fit_smoothing),
                                     ("lr", args.fit_lr)) if v is not None}
     if not surface:
-        fit_kwargs["voxel_surface"] = False  # also keys the fit cache: the two measures never mix
+        fit_kwargs["voxel_surface"] = False
     fit_rows = score_fit(dataset, iters=fit_iters, views=8, seed=args.seed, progress=not args.quiet, **fit_kwargs)
     print(f"overfit: {len(shape_ids)} shapes of {data_dir}, predictor trained {train_s / 60:.1f} min this call "
           f"(run {out / 'run'}); direct fit {fit_iters} iterations per shape, "
@@ -245,7 +248,7 @@ def main_overfit(args) -> int:
               f"(target <= {GAP_TARGET})")
     record = {"benchmark": "overfit", "data": str(data_dir), "shapes": shape_ids,
               "train_minutes": train_s / 60.0, "config": cfg.to_dict(), "fit": fit_rows, "predictor": pred_rows,
-              "fit_iters": fit_iters, "gap": gap, "pass": passed}
+              "fit_iters": fit_iters, "gap": gap, "pass": passed, "voxel_surface": surface}
     atomic_write_text(out / "overfit.json", json.dumps(record, indent=2) + "\n")
     print(f"wrote {out / 'overfit.json'} and {out / 'overfit.png'} (per shape: dataset views, then the predicted mesh)")
     return 0

@@ -193,12 +193,19 @@ def main_variants(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(int(args.threads))
     record = _load(out)
+    surface = not args.voxel_centres
+    # a record's points were all scored with one voxel measure (records from before the choice: cell centres)
+    measure = record.get("voxel_surface", False) if (record.get("points") or "template" in record) else surface
+    if measure != surface:
+        raise SketchmeshError(f"{out} was scored with voxels by {'surface' if measure else 'cell centres'}; "
+                              f"{'drop' if measure else 'add'} --voxel-centres or use another --out")
+    record["voxel_surface"] = surface
     test_set = make_dataset(base.replace(extra_views=0, augment_strength=0.0, categories=()), "test")
     if len(test_set) == 0:
         raise SketchmeshError(f"the test split of {data} is empty")
     if "template" not in record:
         record["template"] = _template_scores(base, out / "runs" / "_template", test_set, args.max_samples,
-                                              voxel_surface=not args.voxel_centres)
+                                              voxel_surface=surface)
     record["settings"] = {"data": str(data), "minutes": args.minutes, "points": args.points,
                           "max_samples": args.max_samples, "threads": args.threads}  # the latest call's
     for name, cfg in configs.items():
@@ -219,7 +226,7 @@ def main_variants(args) -> int:
             trained_s += time.perf_counter() - t0 + already
             with torch.no_grad():
                 res = evaluate(cfg.out_dir, data, gt_normals=True, retrieval=False, max_samples=args.max_samples,
-                               progress=False, test_set=test_set, voxel_surface=not args.voxel_centres)
+                               progress=False, test_set=test_set, voxel_surface=surface)
             m = res["mean"]
             point = {"variant": name, "chunk": k + 1, "train_minutes": trained_s / 60.0,
                      "iteration": trainer.iteration, "run_seconds": trainer.train_seconds,

@@ -133,8 +133,8 @@ def _axis_winding(vertices: np.ndarray, faces: np.ndarray, axis: int, resolution
     return above - below
 
 
-SURFACE_CANDIDATE_CHUNK = 2_000_000
-"""(face, cell) candidate pairs tested at once by :func:`surface_voxels` (bounds its memory)."""
+SURFACE_CANDIDATE_CHUNK = 250_000
+"""(face, cell) candidate pairs tested at once by :func:`surface_voxels` (bounds its memory: about 80 MB)."""
 
 
 def surface_voxels(mesh: Mesh, resolution: int = DEFAULT_VOXEL_RESOLUTION) -> np.ndarray:
@@ -157,21 +157,22 @@ def surface_voxels(mesh: Mesh, resolution: int = DEFAULT_VOXEL_RESOLUTION) -> np
     tri = g[mesh.faces]  # (F, 3, 3)
     lo = np.clip(np.floor(tri.min(1)).astype(np.int64), 0, R - 1)
     hi = np.clip(np.floor(tri.max(1)).astype(np.int64), 0, R - 1)
-    inside_cube = (tri.max(1) > 0).all(1) & (tri.min(1) < R).all(1)
+    # faces with a non-finite corner are skipped (their bounding box is meaningless)
+    inside_cube = (tri.max(1) > 0).all(1) & (tri.min(1) < R).all(1) & np.isfinite(tri).all((1, 2))
     n = np.where(inside_cube[:, None], hi - lo + 1, 0)  # (F, 3) cells per axis in each face's box
     counts = n.prod(1)
     face_ids = np.nonzero(counts)[0]
     if face_ids.size == 0:
         return out.reshape(R, R, R)
-    # chunks of faces whose candidate counts add up to about SURFACE_CANDIDATE_CHUNK
+    # the (face, cell) candidates, numbered 0 .. total - 1 face after face, tested SURFACE_CANDIDATE_CHUNK
+    # at a time (a chunk may split a face: one large face at R = 512 alone has up to 512^3 candidates)
     csum = np.cumsum(counts[face_ids])
-    bounds = np.searchsorted(csum, np.arange(SURFACE_CANDIDATE_CHUNK, int(csum[-1]), SURFACE_CANDIDATE_CHUNK))
-    for chunk in np.split(face_ids, np.unique(bounds)):
-        if chunk.size == 0:
-            continue
-        c = counts[chunk]
-        f = np.repeat(chunk, c)
-        local = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+    first = csum - counts[face_ids]  # the number of each face's first candidate
+    for start in range(0, int(csum[-1]), SURFACE_CANDIDATE_CHUNK):
+        idx = np.arange(start, min(start + SURFACE_CANDIDATE_CHUNK, int(csum[-1])), dtype=np.int64)
+        which = np.searchsorted(csum, idx, side="right")  # position of each candidate's face in face_ids
+        f = face_ids[which]
+        local = idx - first[which]
         ny, nz = n[f, 1], n[f, 2]
         cell = lo[f] + np.stack([local // (ny * nz), (local // nz) % ny, local % nz], axis=1)  # (N, 3)
         v = tri[f] - (cell + 0.5)[:, None, :]  # (N, 3, 3) corners relative to the cell centre
