@@ -522,3 +522,50 @@ def test_bench_renderer_cli_writes_records(tmp_path, capsys):
     assert rc != 0
     err = capsys.readouterr().err.strip().splitlines()  # the progress bar, then one error line
     assert err[-1].startswith("sketchmesh: error: cannot write the benchmark records")
+
+
+def _facing_square(z: float = 0.0):
+    """Two triangles in the plane z = ``z`` facing a look_at(0, 0) camera (on +z), counter-clockwise from it."""
+    v = torch.tensor([[-0.3, -0.25, z], [0.3, -0.25, z], [0.3, 0.25, z], [-0.3, 0.25, z]], dtype=torch.float64)
+    return v, torch.tensor([[0, 1, 2], [0, 2, 3]])
+
+
+def test_normal_edges_off_leaves_the_outline_to_the_silhouette():
+    """normal_edges=False: the normal image's gradient only orients the surface. Sliding a vertex of a square that
+    faces the camera within its plane changes where the outline is, not any face's normal: with the edge gradient
+    the normal image pulls it, without it the gradient is exactly 0; the silhouette's gradient is the same either
+    way; and tilting a vertex out of the plane moves the covered pixels' normals as finite differences say."""
+    S = 32
+    cam = cameras_to_tensor([look_at(0.0, 0.0)], dtype=torch.float64)
+    v0, f = _facing_square()
+    w = torch.linspace(0.2, 1.0, 3 * S * S, dtype=torch.float64).view(1, 3, S, S)  # any fixed weights
+
+    def grads(normal_edges: bool):
+        v = v0.clone()[None].requires_grad_(True)
+        out = rasterize(v, f, cam, S, normal_edges=normal_edges)
+        gn, = torch.autograd.grad((out.normals * w).sum(), v, retain_graph=True)
+        gs, = torch.autograd.grad((out.silhouette * w[:, 0]).sum(), v)
+        return gn[0], gs[0], out
+
+    gn_on, gs_on, out_on = grads(True)
+    gn_off, gs_off, out_off = grads(False)
+    torch.testing.assert_close(out_off.normals, out_on.normals, rtol=0, atol=0)  # the same image
+    assert gn_on[:, :2].abs().sum() > 0  # Eq. 1 moves the outline for the normal term
+    assert float(gn_off[:, :2].abs().max()) < 1e-9 * float(gn_on[:, :2].abs().max())  # in-plane: rounding only
+    torch.testing.assert_close(gs_off, gs_on, rtol=0, atol=0)
+    # out of the plane: vertex 2's z tilts both faces' normals; pixels that stay covered follow finite differences
+    covered = out_off.silhouette[0] > 0.5
+    mask = torch.zeros_like(w)
+    mask[:, :, covered] = 1.0
+    interior = torch.nn.functional.max_pool2d(1.0 - covered.double()[None, None], 3, 1, 1)[0, 0] == 0  # not by an edge
+    mask[:, :, ~interior] = 0.0
+    v = v0.clone()[None].requires_grad_(True)
+    g, = torch.autograd.grad((rasterize(v, f, cam, S, normal_edges=False).normals * w * mask).sum(), v)
+    eps = 1e-6
+    vals = []
+    for sgn in (1.0, -1.0):
+        vp = v0.clone()
+        vp[2, 2] += sgn * eps
+        vals.append(float((rasterize(vp[None], f, cam, S).normals * w * mask).sum()))
+    fd = (vals[0] - vals[1]) / (2 * eps)
+    assert abs(fd) > 1e-3 and float(g[0, 2, 2]) == pytest.approx(fd, rel=1e-4)

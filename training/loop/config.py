@@ -106,6 +106,9 @@ class TrainConfig:
             "soft", SoftRas's soft silhouette (:mod:`training.render.soft`), an outside reference
             for the comparison, not the paper's method.
         soft_sigma: SoftRas's sharpness (NDC units squared) with ``silhouette="soft"``.
+        normal_edges: the normal term's gradient includes the Eq. 1 edge gradient (True, the paper's);
+            False lets it orient the surface only and leaves the outline to the silhouette term
+            (:func:`training.render.rasterize`).
         shading: "flat" or "smooth" normals in the rendered normal image.
         grad_clip: max global gradient norm per model (0 disables clipping).
         max_bad_steps: consecutive non-finite steps after which the last good state is restored.
@@ -169,6 +172,7 @@ class TrainConfig:
     edge_range: int = 1
     silhouette: str = "eq1"
     soft_sigma: float = 1e-4
+    normal_edges: bool = True
     shading: str = "flat"
     grad_clip: float = 10.0
     max_bad_steps: int = 5

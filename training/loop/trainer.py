@@ -302,7 +302,7 @@ def render_views(vertices: torch.Tensor, faces: torch.Tensor, cameras: torch.Ten
     vv = vertices[:, None].expand(b, nv, *vertices.shape[1:]).reshape(b * nv, *vertices.shape[1:])
     return rasterize_for_loss(vv, faces, cameras.reshape(b * nv, 16), cfg.render_size, delta=cfg.delta,
                               shading=cfg.shading, edge_range=cfg.edge_range, silhouette=cfg.silhouette,
-                              soft_sigma=cfg.soft_sigma)
+                              soft_sigma=cfg.soft_sigma, normal_edges=cfg.normal_edges)
 
 
 def mesh_targets(batch: dict) -> tuple[torch.Tensor, torch.Tensor]:

@@ -917,6 +917,7 @@ def rasterize(
     shading: str = "flat",
     cull_backfaces: bool = False,
     edge_range: int = 1,
+    normal_edges: bool = True,
 ) -> RenderOutput:
     """Render encoded camera-space normal images and silhouettes, differentiably.
 
@@ -934,6 +935,10 @@ def rasterize(
         edge_range: reach of the Eq. 1 gradient along rows and columns, in pixels (int >= 1): 1
             (the default) uses adjacent pixel pairs only; larger values also let pixels up to that
             far from a boundary pull it, as NMR does along the whole scanline.
+        normal_edges: give the normal image the Eq. 1 edge gradient too (the default, the paper's).
+            False: the normal image's gradient flows only through the face normals of the pixels
+            each face covers (how its surface is oriented), never through where its outline is;
+            the silhouette keeps its Eq. 1 gradient, so the outline is the silhouette term's alone.
 
     Returns:
         :class:`RenderOutput` with normals (B, 3, S, S), silhouette (B, S, S), depth (B, S, S)
@@ -952,9 +957,12 @@ def rasterize(
         screen.detach(), inv_w.detach(), vvalid, faces, S, cull_backfaces
     )
     image = _shade(p_cam, screen, inv_w, faces, face_index, shading)
+    normals = image[:, :3]
     if image.requires_grad or screen.requires_grad:
         image = _EdgeGradient.apply(image, screen, face_index, coef, keep, faces, float(delta), edge_range)
-    return RenderOutput(normals=image[:, :3], silhouette=image[:, 3], depth=depth, face_index=face_index)
+        if normal_edges:
+            normals = image[:, :3]
+    return RenderOutput(normals=normals, silhouette=image[:, 3], depth=depth, face_index=face_index)
 
 
 def check_edge_range(edge_range) -> int:

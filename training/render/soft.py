@@ -137,16 +137,18 @@ SILHOUETTES = ("eq1", "soft")
 
 
 def rasterize_for_loss(vertices, faces, cameras, image_size, *, delta=1.0, shading="flat", edge_range=1,
-                       silhouette="eq1", soft_sigma=DEFAULT_SIGMA):
+                       silhouette="eq1", soft_sigma=DEFAULT_SIGMA, normal_edges=True):
     """:func:`training.render.rasterize` with the training variants of the silhouette gradient.
 
     ``silhouette="eq1"`` (the method) returns the rasterizer's output with the Eq. 1 gradient
     (``edge_range`` pixels of reach); ``"soft"`` replaces its silhouette by
     :func:`soft_silhouette` (SoftRas, the outside reference), the normal image keeping Eq. 1.
+    ``normal_edges=False``: the normal image without the Eq. 1 edge gradient (see :func:`rasterize`).
     """
     if silhouette not in SILHOUETTES:
         raise ValueError(f"silhouette must be one of {SILHOUETTES}, got {silhouette!r}")
-    out = rasterize(vertices, faces, cameras, image_size, delta=delta, shading=shading, edge_range=edge_range)
+    out = rasterize(vertices, faces, cameras, image_size, delta=delta, shading=shading, edge_range=edge_range,
+                    normal_edges=normal_edges)
     if silhouette == "soft":
         out = replace(out, silhouette=soft_silhouette(vertices, faces, cameras, image_size, sigma=soft_sigma))
     return out
