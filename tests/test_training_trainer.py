@@ -524,3 +524,26 @@ def test_init_mesh_deepens_a_compact_predictor_and_it_exports(data_dir, tmp_path
               "--init-mesh", str(tmp_path / "deep"), *TINY_FLAGS])
     err = capsys.readouterr().err
     assert rc == 2 and "predictor_blocks 1 there, 0 here" in err and "Traceback" not in err
+
+
+def test_render_views_passes_normal_edges_to_the_rasterizer():
+    """cfg.normal_edges reaches the loss's renders: the same normal image, and without the edge gradient the normal
+    image's gradient is the interior one (the rasterizer's own normal_edges=False), with it the Eq. 1 one."""
+    from training.loop.trainer import render_views
+    from training.render import cameras_to_tensor, rasterize
+
+    m = icosphere(1, 0.35)
+    cams = cameras_to_tensor([look_at(20.0, 15.0)], dtype=torch.float64)
+    faces = torch.as_tensor(np.array(m.faces))
+    for edges in (True, False):
+        v = torch.as_tensor(np.array(m.vertices), dtype=torch.float64)[None].requires_grad_(True)
+        out = render_views(v, faces, cams.view(1, 1, 16), TrainConfig(render_size=32, normal_edges=edges))
+        g, = torch.autograd.grad(out.normals.sum(), v)
+        v2 = v.detach().clone().requires_grad_(True)
+        ref = rasterize(v2, faces, cams, 32, normal_edges=edges)
+        g2, = torch.autograd.grad(ref.normals.sum(), v2)
+        torch.testing.assert_close(out.normals, ref.normals)
+        torch.testing.assert_close(g, g2)
+        if edges:
+            g_edges = g
+    assert (g_edges - g).abs().max() > 1e-3  # the two settings differ

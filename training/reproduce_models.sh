@@ -17,7 +17,7 @@
 #   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6
 #   refine-v6 variety-v6 fit-v6);
 #   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 logs-v6 eval-deep-*-v6); interior-v6: the full
-#   loss with the normal term's gradient kept off the outline (full-interior-v6 eval-interior-*-v6).
+#   loss with the normal term's gradient kept off the outline (full-interior-v6 full-interior-x5-v6 eval-interior-*-v6).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -289,16 +289,23 @@ EOF
       sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0.002 --lr-mesh 3e-4 \
         --iters 6000 --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
         --out "$RUNS2/v6_full_interior" --input-normals normals16 --no-normal-edges ;;
+    full-interior-x5-v6)  # the same with the normal weight 5x the paper's (0.01): off the outline, does more help?
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0.01 --lr-mesh 3e-4 \
+        --iters 6000 --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
+        --out "$RUNS2/v6_full_interior_x5" --input-normals normals16 --no-normal-edges ;;
     eval-interior-v6|eval-interior-strong-v6|eval-interior-side-v6|eval-interior-gt-v6)  # it against the full
       # loss of trials-v5 and the silhouette-only control
       eval_case "${1/interior-/}"
-      sketchmesh eval "$RUNS2/v6_full_interior" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+      local x5=()  # the 5x-weight run where it exists
+      [ ! -d "$RUNS2/v6_full_interior_x5" ] || x5=(--baseline-run "$RUNS2/v6_full_interior_x5")
+      sketchmesh eval "$RUNS2/v6_full_interior" --data "$DATA2" --generator-run "$RUNS2/normals16" "${x5[@]}" \
         --baseline-run "$RUNS2/v5_full" --baseline-run "$RUNS2/v4_generated_last" --no-retrieval "${EVAL_EXTRA[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT6/interior_$EVAL_NAME" ;;
     interior-v6)  # the sixth session's second trial: full minus silhouette-only with the normal term off the outline
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
-      for s in full-interior-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6; do
+      for s in full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 \
+               eval-interior-gt-v6; do
         step "$s"
       done ;;
     logs-v6)  # the deeper run's training log against the control's (rate, silhouette term over the last 1,000
@@ -495,7 +502,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }
