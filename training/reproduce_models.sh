@@ -304,26 +304,31 @@ EOF
     interior-v6)  # the sixth session's second trial: full minus silhouette-only with the normal term off the outline
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
-      for s in full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 \
+      for s in full-interior-v6 full-interior-x5-v6 logs-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 \
                eval-interior-gt-v6; do
         step "$s"
       done ;;
-    logs-v6)  # the deeper run's training log against the control's (rate, silhouette term over the last 1,000
-      # iterations) and how far its blocks' gates opened
+    logs-v6)  # the sixth session's runs' training logs against the control's (rate, silhouette term and normal
+      # error over the last 1,000 iterations) and how far the deeper run's gates opened
       python3 - "$RUNS2" <<'EOF'
 import csv, sys, numpy as np
 from pathlib import Path
 from training.loop.checkpoint import load_latest_checkpoint
 runs = Path(sys.argv[1])
-for name in ("v4_generated_last", "v6_deep"):
+for name in ("v4_generated_last", "v5_full", "v6_deep", "v6_full_interior", "v6_full_interior_x5"):
+    if not (runs / name / "log.csv").is_file():
+        continue
     with open(runs / name / "log.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     it = np.array([int(r["iteration"]) for r in rows])
-    sil = np.mean([float(r["mesh_silhouette"]) for r, i in zip(rows, it) if i > it.max() - 1000])
+    last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
+    sil, nrm = (np.mean([float(r[k]) for r in last]) for k in ("mesh_silhouette", "mesh_normal"))
     print(f"{name}: {it.max()} iterations in {float(rows[-1]['wall_s']) / 60:.1f} min "
-          f"({it.max() / float(rows[-1]['wall_s']):.2f} it/s); silhouette term over the last 1,000: {sil:.4f}")
-sd = load_latest_checkpoint(runs / "v6_deep")["models"]["predictor"]
-print("v6_deep gates:", ", ".join(f"{k} {float(v):+.5f}" for k, v in sd.items() if k.endswith(".gain")))
+          f"({it.max() / float(rows[-1]['wall_s']):.2f} it/s); last 1,000: silhouette term {sil:.4f}, "
+          f"normal error {nrm:.1f}")
+if (runs / "v6_deep").is_dir():
+    sd = load_latest_checkpoint(runs / "v6_deep")["models"]["predictor"]
+    print("v6_deep gates:", ", ".join(f"{k} {float(v):+.5f}" for k, v in sd.items() if k.endswith(".gain")))
 EOF
       ;;
     eval-deep-v6|eval-deep-strong-v6|eval-deep-side-v6|eval-deep-gt-v6)  # the deeper encoder against the control
