@@ -550,7 +550,7 @@ def test_deepened_compact_predictor_starts_as_the_same_function_and_its_blocks_l
     # Adam moves a gate by at most about lr per step: after two steps each is within 2 lr of 0 (and has moved)
     for stage in deep.blocks:
         for block in stage:
-            assert 0 < abs(float(block.gain)) <= 2e-3 * (1 + 1e-6)
+            assert 0 < abs(float(block.gain.detach())) <= 2e-3 * (1 + 1e-6)
     with pytest.raises(ValueError, match="encoder blocks this predictor lacks"):
         shallow.load_grown(deep.state_dict())
     with pytest.raises(ValueError, match=r"blocks must be in \[0, 4\]"):
