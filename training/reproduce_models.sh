@@ -331,9 +331,14 @@ for name in ("v4_generated_last", "v5_full", "v6_deep", "v6_full_interior", "v6_
     print(f"{name}: {it.max()} iterations in {float(rows[-1]['wall_s']) / 60:.1f} min "
           f"({it.max() / float(rows[-1]['wall_s']):.2f} it/s); last 1,000: silhouette term {sil:.4f}, "
           f"normal error {nrm:.1f}")
-if (runs / "v6_deep").is_dir():
-    sd = load_latest_checkpoint(runs / "v6_deep")["models"]["predictor"]
-    print("v6_deep gates:", ", ".join(f"{k} {float(v):+.5f}" for k, v in sd.items() if k.endswith(".gain")))
+buffers = ("running_mean", "running_var", "num_batches_tracked", "basis")
+for name in ("v4_generated_last", "v6_deep"):
+    if (runs / name).is_dir():
+        sd = load_latest_checkpoint(runs / name)["models"]["predictor"]
+        count = sum(v.numel() for k, v in sd.items() if not k.endswith(buffers))
+        print(f"{name}: {count:,} predictor parameters")
+        if name == "v6_deep":
+            print("v6_deep gates:", ", ".join(f"{k} {float(v):+.5f}" for k, v in sd.items() if k.endswith(".gain")))
 EOF
       ;;
     eval-deep-v6|eval-deep-strong-v6|eval-deep-side-v6|eval-deep-gt-v6)  # the deeper encoder against the control
