@@ -15,7 +15,7 @@
 #   connected layers, each against continuing it unchanged (generated-v5 predictor-v5 logs-v5 eval-*-v5 eval-train-v5).
 # The surface measure of voxel IoU (remeasure-v6, into OUT6 [out/v6]): the headline figures again, with the cells a
 #   thin part's surface passes through counted (eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6
-#   refine-v6 variety-v6 fit-v6);
+#   refine-v6 thin-v6 variety-v6 fit-v6);
 #   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 logs-v6 eval-deep-*-v6); interior-v6: the full
 #   loss with the normal term's gradient kept off the outline (full-interior-v6 full-interior-x5-v6 eval-interior-*-v6).
 # The first models and the experiments that chose today's training defaults (the README's history):
@@ -270,6 +270,33 @@ EOF
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT5/eval_train" ;;
     refine-v6)  # refine-v2 (the app's outline refinement, bundled models) with the surface measure
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --out "$OUT6/refine" ;;
+    thin-v6)  # why the measure changed: per category, how many of the 156 test sketches' ground-truth shapes have
+      # no solid cell at all by cell centres, and by the surface measure
+      python3 - "$DATA2" "$SAMPLES2" <<'EOF'
+import sys
+from collections import Counter
+from pathlib import Path
+import numpy as np
+from training.data.dataset import ShapeViewDataset
+from training.evaluation.metrics import solid_voxels
+ds = ShapeViewDataset(Path(sys.argv[1]), "test", extra_views=0, augment_strength=0.0)
+idx = np.arange(len(ds))
+n = int(sys.argv[2])
+if n and n < len(idx):  # the samples sketchmesh eval --max-samples N scores
+    idx = idx[np.unique(np.linspace(0, len(idx) - 1, n).round().astype(int))]
+total, empty = Counter(), {False: Counter(), True: Counter()}
+for i in idx:
+    item = ds[int(i)]
+    cat, sid = item["category"], item["shape_id"]
+    mesh = ds.load_mesh(cat, sid)
+    total[cat] += 1
+    for surface in (False, True):
+        empty[surface][cat] += int(not solid_voxels(mesh, 32, surface).any())
+print("category: samples, ground truths with no solid cell by centres / by the surface measure")
+for cat in sorted(total):
+    print(f"{cat}: {total[cat]}, {empty[False][cat]} / {empty[True][cat]}")
+EOF
+      ;;
     variety-v6)  # how near a held-out shape's nearest training shape is (the bound on retrieval), surface measure
       mkdir -p "$OUT6"
       sketchmesh bench variety --shapes-per-category 100 --quiet --json "$OUT6/variety.json" ;;
@@ -505,7 +532,7 @@ EOF
     remeasure-v6)  # the sixth session: every headline figure again with the surface measure of voxel IoU
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
-      for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 variety-v6 fit-v6; do
+      for s in eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6; do
         step "$s"
       done ;;
     deep-v6)  # the sixth session's trial: a deeper encoder at trials-v5's protocol (nothing shipped unless it wins)
@@ -517,7 +544,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }
