@@ -335,6 +335,11 @@ EOF
                eval-interior-gt-v6 gallery-interior-v6; do
         step "$s"
       done ;;
+    predictor-v7)  # the candidate next predictor: interior-v6's run (the normal term off the outline) trained on for
+      # V7_ITERS [9000] more iterations (V7_MINUTES [45] at most, two threads); resumes, nothing measured yet
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v6_full_interior" --lambda-n 0.002 --lr-mesh 3e-4 \
+        --iters "${V7_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V7_MINUTES:-45}" --out "$RUNS2/v7_interior_more" --input-normals normals16 --no-normal-edges ;;
     gallery-interior-v6)  # the full loss off the outline as the app would run it (int8 predictor, the bundled
       # generator), on gallery-v2's test shapes: to look at beside docs/gallery.png (the bundled pair)
       sketchmesh export "$RUNS2/v6_full_interior" --generator-run "$RUNS2/normals16" -o "$OUT6/models_interior_int8" \
@@ -544,7 +549,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
       exit 2 ;;
   esac
 }
