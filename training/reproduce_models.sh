@@ -336,7 +336,8 @@ EOF
         step "$s"
       done ;;
     predictor-v7)  # the candidate next predictor: interior-v6's run (the normal term off the outline) trained on for
-      # V7_ITERS [9000] more iterations (V7_MINUTES [45] at most, two threads); resumes, nothing measured yet
+      # V7_ITERS [9000] more iterations (V7_MINUTES [45] at most, two threads; RUNS2=runs/gpu as interior-v6 sets it);
+      # resumes, nothing measured yet
       sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v6_full_interior" --lambda-n 0.002 --lr-mesh 3e-4 \
         --iters "${V7_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
         --max-minutes "${V7_MINUTES:-45}" --out "$RUNS2/v7_interior_more" --input-normals normals16 --no-normal-edges ;;
