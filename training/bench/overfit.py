@@ -231,8 +231,7 @@ def main_overfit(args) -> int:
                                 voxel_surface=surface)
     fit_kwargs = {k: v for k, v in (("normal_region", args.fit_normal_region), ("smoothing", args.fit_smoothing),
                                     ("lr", args.fit_lr)) if v is not None}
-    if not surface:
-        fit_kwargs["voxel_surface"] = False
+    fit_kwargs["voxel_surface"] = surface
     fit_rows = score_fit(dataset, iters=fit_iters, views=8, seed=args.seed, progress=not args.quiet, **fit_kwargs)
     print(f"overfit: {len(shape_ids)} shapes of {data_dir}, predictor trained {train_s / 60:.1f} min this call "
           f"(run {out / 'run'}); direct fit {fit_iters} iterations per shape, "

@@ -42,7 +42,7 @@ _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 _cmd_bench_variety = _lazy("training.evaluation.variety", "main_variety")
 
 
-def _voxel_centres_flag(parser: argparse.ArgumentParser) -> None:
+def voxel_centres_flag(parser: argparse.ArgumentParser) -> None:
     """``--voxel-centres``: score voxel IoU with cell centres only, the measure of the tables made before the
     surface's cells counted (``training.evaluation.metrics.solid_voxels``; thin parts vanish)."""
     parser.add_argument("--voxel-centres", action="store_true",
@@ -104,7 +104,7 @@ def register(commands, bench) -> None:
     q.add_argument("--resolution", type=_resolution, default=64)
     q.add_argument("--seed", type=int, default=0)
     q.add_argument("--json", metavar="PATH", help="write the results as JSON")
-    _voxel_centres_flag(q)
+    voxel_centres_flag(q)
     q.set_defaults(func=_cmd_bench_fit)
 
     o = one_line_errors(bench.add_parser(
@@ -133,7 +133,7 @@ def register(commands, bench) -> None:
     o.add_argument("--threads", type=positive_int, default=2)
     o.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     o.add_argument("--quiet", action="store_true")
-    _voxel_centres_flag(o)
+    voxel_centres_flag(o)
     o.set_defaults(func=_cmd_bench_overfit)
 
     tr = one_line_errors(bench.add_parser(
@@ -180,7 +180,7 @@ def register(commands, bench) -> None:
     v.add_argument("--threads", type=positive_int, default=2, help="torch intra-op threads (default 2)")
     v.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     v.add_argument("--quiet", action="store_true")
-    _voxel_centres_flag(v)
+    voxel_centres_flag(v)
     v.set_defaults(func=_cmd_bench_variants)
 
     w = one_line_errors(bench.add_parser(
@@ -194,7 +194,7 @@ def register(commands, bench) -> None:
     w.add_argument("--voxel-resolution", type=int_in(4, 256), default=32)
     w.add_argument("--json", metavar="PATH", help="also write the table as JSON here")
     w.add_argument("--quiet", action="store_true")
-    _voxel_centres_flag(w)
+    voxel_centres_flag(w)
     w.set_defaults(func=_cmd_bench_variety)
 
     p = one_line_errors(bench.add_parser(
@@ -215,7 +215,7 @@ def register(commands, bench) -> None:
     p.add_argument("--threads", type=int_in(1, 256), default=2, help="ONNX Runtime threads (default 2)")
     p.add_argument("--no-intersections", action="store_true", help="skip counting self-intersections (faster)")
     p.add_argument("--quiet", action="store_true")
-    _voxel_centres_flag(p)
+    voxel_centres_flag(p)
     p.set_defaults(func=_cmd_bench_refine)
 
     t = one_line_errors(bench.add_parser(
@@ -235,7 +235,7 @@ def register(commands, bench) -> None:
     t.add_argument("--bundled", metavar="LABEL[:PRECISION]", help="mark this variant as the bundled choice")
     t.add_argument("--out", required=True, metavar="DIR", help="folder for tradeoff.md/.json/.png")
     t.add_argument("--quiet", action="store_true")
-    _voxel_centres_flag(t)
+    voxel_centres_flag(t)
     t.set_defaults(func=_cmd_bench_tradeoff)
 
     if commands is None:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from engine.cliutil import check_output_dir, float_in, int_in, one_line_errors, run_guarded, unit_float
 from engine.errors import SketchmeshError
+from training.cli.bench import voxel_centres_flag
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
 _EXPLICIT = {"mode", "data_dir", "out_dir"}
@@ -339,9 +340,7 @@ def register(commands, bench) -> None:
     p.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
                    help="evaluate at most this many test samples (with --models: meshes), evenly spaced (0: all)")
     p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)
-    p.add_argument("--voxel-centres", action="store_true",
-                   help="a cell is solid only when its centre is inside (the tables measured before the surface's "
-                   "cells counted; thin parts vanish)")
+    voxel_centres_flag(p)
     p.add_argument("--elevation", type=float_in(-90.0, 90.0), default=None, metavar="DEG",
                    help="only the views rendered at this elevation (e.g. 0 for side and front views)")
     p.add_argument("--threads", type=_threads, default=0,
