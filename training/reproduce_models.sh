@@ -18,6 +18,9 @@
 #   refine-v6 thin-v6 variety-v6 fit-v6);
 #   deep-v6: a deeper encoder against trials-v5's control (predictor-v6 logs-v6 eval-deep-*-v6); interior-v6: the full
 #   loss with the normal term's gradient kept off the outline (full-interior-v6 full-interior-x5-v6 eval-interior-*-v6).
+# The fifth bundled models (all-v7, into OUT7 [out/v7]): interior-v6's predictor trained on (predictor-v7), chosen
+#   against it and the fourth on the validation split (val-v7), evaluated, exported, timed and shipped (eval-*-v7
+#   eval-train-v7 export-v7 tradeoff-v7 gallery-v2 compare-v7 ship-v2 refine-v2 docs-v2), surface measure.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -61,6 +64,7 @@ OUT2=${OUT2:-out/v2}
 OUT4=${OUT4:-out/v4}
 OUT5=${OUT5:-out/v5}
 OUT6=${OUT6:-out/v6}
+OUT7=${OUT7:-out/v7}
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
 # centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
@@ -383,6 +387,40 @@ EOF
       sketchmesh eval "$RUNS2/v6_deep" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
         --baseline-run "$RUNS2/v4_generated_last" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
         --out "$OUT6/deep_eval_train" ;;
+    val-v7)  # the choice of the fifth predictor, on the validation split (clean sketches): predictor-v7's run against
+      # interior-v6's (where it started) and the fourth bundled predictor; the test split is only measured after
+      sketchmesh eval "$RUNS2/v7_interior_more" --data "$DATA2" --split val --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v6_full_interior" --baseline-run "$RUNS2/v4_generated_more" --no-retrieval \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT7/val_clean" ;;
+    eval-v7|eval-strong-v7|eval-side-v7|eval-gt-v7)  # the chosen predictor (PRED7 [v7_interior_more]) on the test
+      # split against interior-v6's run, the fourth bundled predictor and retrieval
+      eval_case "$1"
+      sketchmesh eval "$RUNS2/${PRED7:-v7_interior_more}" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v6_full_interior" --baseline-run "$RUNS2/v4_generated_more" "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT7/$EVAL_NAME" ;;
+    eval-train-v7)  # the same from clean sketches of training views (against the direct fits' 0.763 of fit-v6)
+      sketchmesh eval "$RUNS2/${PRED7:-v7_interior_more}" --data "$DATA2" --split train --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v4_generated_more" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
+        --out "$OUT7/eval_train" ;;
+    export-v7)  # the chosen predictor with the third and fourth models' generator; the int8 predictor is the bundled one
+      sketchmesh export "$RUNS2/${PRED7:-v7_interior_more}" --generator-run "$RUNS2/normals16" -o "$OUT7/models_fp32"
+      sketchmesh export "$RUNS2/${PRED7:-v7_interior_more}" --generator-run "$RUNS2/normals16" -o "$OUT7/models_int8" \
+        --quantize int8
+      [ -d "$OUT4/models_fp32" ] || step export-v4 ;;
+    tradeoff-v7)  # error against run time in the app's engine: the fifth pair beside the fourth's and width 8, surface
+      # measure (run it alone: it times)
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v7=$OUT7/models_fp32" --variant "w16-v4=$OUT4/models_fp32" \
+        --variant "w8-full=$OUT2/models_w8_pretrained" --precisions fp32 int8-predictor int8 --levels 2 3 4 \
+        --bundled w16-v7:int8-predictor --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT7/tradeoff" ;;
+    compare-v7)  # the app's ONNX path: the four earlier bundled pairs (from git), the fifth, retrieval and the template
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
+        mkdir -p "$OUT7/models_$c"
+        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT7/models_$c/$f"; done
+        folders+=(--models "$OUT7/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --models "$OUT7/models_int8" --data "$DATA2" --views 4 --max-samples 39 --threads 2 \
+        --out "$OUT7/compare" ;;
     eval-v6|eval-strong-v6|eval-side-v6|eval-gt-v6)  # the surface measure of voxel IoU (a thin part keeps its
       # cells): the bundled predictor, the third models', the equal-time control and full loss of trials-v5, retrieval
       eval_case "$1"
@@ -535,6 +573,12 @@ EOF
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v4_generated_more" ] || step all-v4
       for s in generated-v5 predictor-v5 logs-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5; do step "$s"; done ;;
+    all-v7)  # the fifth bundled models: interior-v6's predictor trained on, chosen on the validation split, shipped
+      RUNS2=runs/gpu; OUT2=out/v3; SHIP_MODELS=$OUT7/models_int8; SHIP_OUT=$OUT7; CENTRES=()
+      [ -d "$RUNS2/v6_full_interior" ] || step interior-v6
+      for s in predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 \
+               gallery-v2 compare-v7 ship-v2 refine-v2; do step "$s"; done
+      step docs-v2 ;;
     remeasure-v6)  # the sixth session: every headline figure again with the surface measure of voxel IoU
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
@@ -550,7 +594,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
       exit 2 ;;
   esac
 }
