@@ -20,7 +20,8 @@
 #   loss with the normal term's gradient kept off the outline (full-interior-v6 full-interior-x5-v6 eval-interior-*-v6).
 # The fifth bundled models (all-v7, into OUT7 [out/v7]): interior-v6's predictor trained on (predictor-v7), chosen
 #   against it and the fourth on the validation split (val-v7), evaluated, exported, timed and shipped (eval-*-v7
-#   eval-train-v7 export-v7 tradeoff-v7 gallery-v2 compare-v7 ship-v2 refine-v2 docs-v2), surface measure.
+#   eval-train-v7 export-v7 tradeoff-v7 gallery-v2 compare-v7 ship-v2 refine-v2 docs-v2), surface measure; then its
+#   silhouette-only control trained as long (control-v7 logs-v7 eval-control-*-v7).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -412,6 +413,37 @@ EOF
       sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v7=$OUT7/models_fp32" --variant "w16-v4=$OUT4/models_fp32" \
         --variant "w8-full=$OUT2/models_w8_pretrained" --precisions fp32 int8-predictor int8 --levels 2 3 4 \
         --bundled w16-v7:int8-predictor --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT7/tradeoff" ;;
+    control-v7)  # predictor-v7's silhouette-only control: trials-v5's equal-time control (v4_generated_last, the
+      # same start and 6,000 iterations against interior-v6's 5,720) trained on for the same 9,000 iterations with
+      # the same schedule, normal weight 0 (V7_MINUTES [45] at most, two threads; resumes)
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_last" --lambda-n 0 --lr-mesh 3e-4 \
+        --iters "${V7_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V7_MINUTES:-45}" --out "$RUNS2/v7_silhouette_more" --input-normals normals16 ;;
+    eval-control-v7|eval-control-strong-v7|eval-control-side-v7|eval-control-gt-v7)  # full minus silhouette-only
+      # after the longer training: predictor-v7 against control-v7
+      eval_case "${1/control-/}"
+      sketchmesh eval "$RUNS2/v7_interior_more" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v7_silhouette_more" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" \
+        --threads 2 --out "$OUT7/control_$EVAL_NAME" ;;
+    logs-v7)  # predictor-v7's and control-v7's training logs: rate, and the silhouette term and normal error over
+      # their last 1,000 iterations (where a run was stopped and resumed, wall time counts the invocations' own)
+      python3 - "$RUNS2" <<'EOF'
+import csv, sys, numpy as np
+from pathlib import Path
+runs = Path(sys.argv[1])
+for name in ("v6_full_interior", "v4_generated_last", "v7_interior_more", "v7_silhouette_more"):
+    if not (runs / name / "log.csv").is_file():
+        continue
+    with open(runs / name / "log.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    it = np.array([int(r["iteration"]) for r in rows])
+    rate = np.median([float(r["it_per_s"]) for r in rows])
+    last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
+    sil, nrm = (np.mean([float(r[k]) for r in last]) for k in ("mesh_silhouette", "mesh_normal"))
+    print(f"{name}: {it.max()} iterations, median {rate:.2f} it/s; last 1,000: silhouette term {sil:.4f}, "
+          f"normal error {nrm:.1f}")
+EOF
+      ;;
     compare-v7)  # the app's ONNX path: the four earlier bundled pairs (from git), the fifth, retrieval and the template
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
@@ -578,7 +610,8 @@ EOF
       [ -d "$RUNS2/v6_full_interior" ] || step interior-v6
       for s in predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 \
                gallery-v2 compare-v7 ship-v2 refine-v2; do step "$s"; done
-      step docs-v2 ;;
+      step docs-v2
+      for s in control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7; do step "$s"; done ;;
     remeasure-v6)  # the sixth session: every headline figure again with the surface measure of voxel IoU
       RUNS2=runs/gpu; OUT2=out/v3
       [ -d "$RUNS2/v5_full" ] || step trials-v5
@@ -594,7 +627,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
       exit 2 ;;
   esac
 }
