@@ -22,6 +22,7 @@
 #   against it and the fourth on the validation split (val-v7), evaluated, exported, timed and shipped (eval-*-v7
 #   eval-train-v7 export-v7 tradeoff-v7 gallery-v2 compare-v7 ship-v2 refine-v2 docs-v2), surface measure; then its
 #   silhouette-only control trained as long (control-v7 logs-v7 eval-control-*-v7).
+# Next (RUNS2=runs/gpu): predictor-v8 trains the fifth predictor on; val-v8 eval-*-v8 measure it (into out/v8).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -444,6 +445,21 @@ for name in ("v6_full_interior", "v4_generated_last", "v7_interior_more", "v7_si
           f"normal error {nrm:.1f}")
 EOF
       ;;
+    predictor-v8)  # the candidate sixth predictor: the fifth bundled one (predictor-v7) trained on with the same
+      # loss for V8_ITERS [9000] more iterations (V8_MINUTES [45] at most, two threads; resumes): longer training
+      # was worth +0.009 per 9,000 iterations without the normal term and the normal term +0.006 (control-v7)
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v7_interior_more" --lambda-n 0.002 --lr-mesh 3e-4 \
+        --iters "${V8_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V8_MINUTES:-45}" --out "$RUNS2/v8_interior_more" --input-normals normals16 --no-normal-edges ;;
+    val-v8)  # predictor-v8 against the bundled (fifth) predictor on the validation split, clean sketches
+      sketchmesh eval "$RUNS2/v8_interior_more" --data "$DATA2" --split val --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v7_interior_more" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
+        --out "${OUT8:-out/v8}/val_clean" ;;
+    eval-v8|eval-strong-v8|eval-side-v8|eval-gt-v8)  # the same on the test split
+      eval_case "$1"
+      sketchmesh eval "$RUNS2/v8_interior_more" --data "$DATA2" --generator-run "$RUNS2/normals16" \
+        --baseline-run "$RUNS2/v7_interior_more" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" \
+        --threads 2 --out "${OUT8:-out/v8}/$EVAL_NAME" ;;
     compare-v7)  # the app's ONNX path: the four earlier bundled pairs (from git), the fifth, retrieval and the template
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
@@ -627,7 +643,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 predictor-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
       exit 2 ;;
   esac
 }
