@@ -1,4 +1,4 @@
-"""``sketchmesh train | eval | export``: cheap to import (argparse only; torch loads inside commands).
+"""``sketchmesh train | eval | export | import-models``: cheap to import (argparse only; torch loads inside commands).
 
 Every :class:`training.loop.config.TrainConfig` field has a flag (``--lambda-n 0`` etc.); the config is
 built once here and passed down. Also runnable as ``python -m training.cli.train ...`` (handy
@@ -285,6 +285,29 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_import(args: argparse.Namespace) -> int:
+    from training._torch import require_torch
+
+    torch = require_torch()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    from engine.models import resolve_models_dir
+    from training.export.from_onnx import import_models
+
+    src = args.models
+    if src == "bundled" and not Path(src).exists():
+        src = resolve_models_dir(None)
+    check_output_dir(args.out, "--out")
+    roles = (args.only,) if args.only else ("generator", "predictor")
+    reports = import_models(src, args.out, data_dir=args.data, roles=roles, calibration=args.calibration)
+    for r in reports:
+        print(r.line())
+    print(f"parity inputs: {reports[0].parity_inputs}")
+    print(f"imported {len(reports)} model(s) into {args.out}: continue with "
+          + " ".join(f"--init-{'normals' if r.role == 'generator' else 'mesh'} {r.run_dir}" for r in reports))
+    return 0
+
+
 _threads = int_in(0, 256)
 
 MAX_VOXEL_RESOLUTION = 256
@@ -358,6 +381,24 @@ def register(commands, bench) -> None:
     p.add_argument("--predictor-run", metavar="RUN", help="take the mesh predictor from this run (default: RUN)")
     p.add_argument("--threads", type=_threads, default=0)
     p.set_defaults(func=_cmd_export)
+    one_line_errors(p)
+
+    p = commands.add_parser(
+        "import-models", help="rebuild exported ONNX models (e.g. the bundled ones) as training runs to train on",
+        description="The reverse of export: MODELS (a folder of generator.onnx / mesh_predictor.onnx; 'bundled' for "
+        "the app's) becomes the run folders OUT/generator and OUT/predictor, checked against ONNX Runtime, so a "
+        "fresh machine can continue training them (--init-normals / --init-mesh) or score them as runs. The "
+        "predictor's batch norms, folded into its convolutions by the export, are set from the batch statistics "
+        "of --calibration training inputs of --data.",
+    )
+    p.add_argument("models", metavar="MODELS")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the run folders (OUT/generator, OUT/predictor)")
+    p.add_argument("--data", metavar="DIR", help="dataset for calibration and parity (default: the one in the models' config)")
+    p.add_argument("--only", choices=("generator", "predictor"), help="import one network")
+    p.add_argument("--calibration", type=int_in(1, 100_000), default=256, metavar="N",
+                   help="training inputs whose statistics set the predictor's batch norms (default 256)")
+    p.add_argument("--threads", type=_threads, default=0)
+    p.set_defaults(func=_cmd_import)
     one_line_errors(p)
 
 
