@@ -97,6 +97,9 @@ class TrainConfig:
             "" (default): off.
         input_share: with ``input_normals``, the share of training samples that read the generated
             image (the others read the true one), fixed per sample; in (0, 1], default 1.
+        mirror: mesh mode: the share of training items mirrored at each step (drawn anew per step),
+            the scene reflected in the input camera's vertical plane with every image and camera
+            (:mod:`training.data.mirror`); in [0, 1], default 0 (off).
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
         edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
@@ -166,6 +169,7 @@ class TrainConfig:
     lambda_chamfer: float = 10.0
     input_normals: str = ""
     input_share: float = 1.0
+    mirror: float = 0.0
     sketch_size: int = 256
     render_size: int = 64
     delta: float = 1.0
@@ -210,6 +214,10 @@ class TrainConfig:
             problems.append(f"supervision '3d' (the diagnostic ceiling) is for mesh mode only, not {self.mode!r}")
         if self.input_normals and self.mode != "mesh":
             problems.append(f"input_normals (generated predictor inputs) is for mesh mode only, not {self.mode!r}")
+        if not 0 <= float(self.mirror) <= 1:
+            problems.append(f"mirror must be in [0, 1], got {self.mirror}")
+        elif self.mirror and self.mode != "mesh":
+            problems.append(f"mirror (mirrored training items) is for mesh mode only, not {self.mode!r}")
         if not 0 < float(self.input_share) <= 1:
             problems.append(f"input_share must be in (0, 1], got {self.input_share}")
         if self.silhouette not in ("eq1", "soft"):

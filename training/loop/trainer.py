@@ -652,6 +652,12 @@ class Trainer:
     def train_step(self, batch: dict, it: int) -> tuple[bool, dict[str, float]]:
         """One guarded optimisation step. Returns (taken, logged terms)."""
         torch.manual_seed(_step_seed(self.cfg.seed, self.info.rank, it))
+        if self.cfg.mirror > 0 and "camera" in batch:
+            from training.data.mirror import mirror_batch
+
+            gen = torch.Generator().manual_seed(_step_seed(self.cfg.seed, self.info.rank, it) + 3)
+            flags = torch.rand(batch["camera"].shape[0], generator=gen) < self.cfg.mirror
+            batch = mirror_batch(batch, flags.to(batch["camera"].device))
         buffers = {k: {n: b.detach().clone() for n, b in m.named_buffers()} for k, m in self.models.items()}
         for o in self.optimizers.values():
             o.zero_grad(set_to_none=True)
