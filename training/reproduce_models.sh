@@ -22,7 +22,10 @@
 #   against it and the fourth on the validation split (val-v7), evaluated, exported, timed and shipped (eval-*-v7
 #   eval-train-v7 export-v7 tradeoff-v7 gallery-v2 compare-v7 ship-v2 refine-v2 docs-v2), surface measure; then its
 #   silhouette-only control trained as long (control-v7 logs-v7 eval-control-*-v7).
-# Next (RUNS2=runs/gpu): predictor-v8 trains the fifth predictor on; val-v8 eval-*-v8 measure it (into out/v8).
+# The sixth candidate (fresh-v8, into RUNS8 [runs/v8] and OUT8 [out/v8]; needs nothing but this repository): the fifth
+#   pair taken from git and imported back as training runs (models-fifth-v8 generated-v8 import-v8), its predictor trained
+#   on as it is and with mirrored items at equal time (predictor-v8) and measured against it (val-v8 eval-v8
+#   eval-strong-v8 eval-side-v8 eval-gt-v8).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -67,6 +70,8 @@ OUT4=${OUT4:-out/v4}
 OUT5=${OUT5:-out/v5}
 OUT6=${OUT6:-out/v6}
 OUT7=${OUT7:-out/v7}
+RUNS8=${RUNS8:-runs/v8}
+OUT8=${OUT8:-out/v8}
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
 # centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
@@ -445,21 +450,66 @@ for name in ("v6_full_interior", "v4_generated_last", "v7_interior_more", "v7_si
           f"normal error {nrm:.1f}")
 EOF
       ;;
-    predictor-v8)  # the candidate sixth predictor: the fifth bundled one (predictor-v7) trained on with the same
-      # loss for V8_ITERS [9000] more iterations (V8_MINUTES [45] at most, two threads; resumes): longer training
-      # was worth +0.009 per 9,000 iterations without the normal term and the normal term +0.006 (control-v7)
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v7_interior_more" --lambda-n 0.002 --lr-mesh 3e-4 \
-        --iters "${V8_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
-        --max-minutes "${V8_MINUTES:-45}" --out "$RUNS2/v8_interior_more" --input-normals normals16 --no-normal-edges ;;
-    val-v8)  # predictor-v8 against the bundled (fifth) predictor on the validation split, clean sketches
-      sketchmesh eval "$RUNS2/v8_interior_more" --data "$DATA2" --split val --generator-run "$RUNS2/normals16" \
-        --baseline-run "$RUNS2/v7_interior_more" --no-retrieval --max-samples "$SAMPLES2" --threads 2 \
-        --out "${OUT8:-out/v8}/val_clean" ;;
+    models-fifth-v8)  # the fifth bundled pair as shipped (git FIFTH [5b01fa5]) into OUT8/models_fifth: what the v8
+      # steps start from, on any machine (its training runs stayed on the machine that trained it)
+      mkdir -p "$OUT8/models_fifth"
+      for f in generator.onnx mesh_predictor.onnx; do git show "${FIFTH:-5b01fa5}:assets/models/$f" > "$OUT8/models_fifth/$f"; done ;;
+    generated-v8)  # generated-v4's inputs from the fifth pair's generator (the same generator: the same images), 14 min
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data generated "$DATA2" --models "$OUT8/models_fifth" --name normals16 --workers 2 ;;
+    import-v8)  # the fifth pair back as training runs (RUNS8/fifth/generator, RUNS8/fifth/predictor): weights from the
+      # ONNX files, the predictor's batch norms calibrated on 256 of its generated training inputs, parity checked
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      [ -f "$RUNS8/fifth/predictor/config.json" ] || \
+        sketchmesh import-models "$OUT8/models_fifth" --out "$RUNS8/fifth" --data "$DATA2" --threads 2 ;;
+    predictor-v8)  # two candidates for the sixth predictor at equal wall time, side by side on one thread each, from
+      # the imported fifth predictor with its loss (normal weight 0.002 off the outline), Adam 3e-4 cosine over
+      # V8_ITERS [7000] (V8_MINUTES [55] at most; resumes): trained on as it is (v8_more) and with half of every
+      # batch mirrored (v8_mirror, --mirror 0.5)
+      [ -f "$RUNS8/fifth/predictor/config.json" ] || step import-v8
+      local v8=(--data "$DATA2" --init-mesh "$RUNS8/fifth/predictor" --lambda-n 0.002 --lr-mesh 3e-4
+        --iters "${V8_ITERS:-7000}" --threads 1 --ckpt-every 250 --val-every 0 --quiet
+        --max-minutes "${V8_MINUTES:-55}" --input-normals normals16 --no-normal-edges)
+      sketchmesh train mesh "${v8[@]}" --out "$RUNS8/v8_more" &
+      sketchmesh train mesh "${v8[@]}" --mirror 0.5 --out "$RUNS8/v8_mirror" &
+      wait ;;
+    mirror-check-v8)  # how near a mirrored generated input is to what the generator makes of the mirrored sketch (what
+      # --mirror approximates), beside the generator's own error against the true image: 96 training views, clean
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      python3 - "$DATA2" "$OUT8/models_fifth/generator.onnx" <<'EOF'
+import sys, numpy as np, torch
+from engine.models import load_generator
+from engine.pipeline import downsample_normals
+from training.data.dataset import ShapeViewDataset
+from training.data.mirror import mirror_normal_image
+ds = ShapeViewDataset(sys.argv[1], "train", extra_views=0, augment_strength=0.0)
+gen = load_generator(sys.argv[2], threads=2)
+def g64(sketch):
+    (n,) = gen.session.run(None, {gen.input_name: np.ascontiguousarray(sketch, np.float32)[None, None]})
+    return torch.from_numpy(downsample_normals(np.clip(n, 0.0, 1.0).astype(np.float32), 64)[0])
+mirror_err, own_err, flip_only = [], [], []
+for i in np.linspace(0, len(ds) - 1, 96).astype(int):
+    item = ds[int(i)]
+    sketch = np.asarray(item["sketch"])[0]
+    a, b = g64(sketch), g64(sketch[:, ::-1])
+    mirror_err.append(float((mirror_normal_image(a) - b).abs().mean()))
+    flip_only.append(float((a.flip(-1) - b).abs().mean()))
+    own_err.append(float((a - torch.as_tensor(np.asarray(item["normals64"]))).abs().mean()))
+print("96 clean training views, mean |difference| per pixel and channel at 64x64:")
+print(f"  mirrored generated image vs the generator's image of the mirrored sketch: {np.mean(mirror_err):.4f}")
+print(f"  the same, flipped without negating x (what a plain image flip would feed): {np.mean(flip_only):.4f}")
+print(f"  the generator's image vs the true normal image (its own error):            {np.mean(own_err):.4f}")
+EOF
+      ;;
+    val-v8)  # predictor-v8's two runs against the fifth predictor (imported) on the validation split, clean sketches
+      sketchmesh eval "$RUNS8/v8_mirror" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS8/v8_more" --baseline-run "$RUNS8/fifth/predictor" --no-retrieval \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT8/val_clean" ;;
     eval-v8|eval-strong-v8|eval-side-v8|eval-gt-v8)  # the same on the test split
       eval_case "$1"
-      sketchmesh eval "$RUNS2/v8_interior_more" --data "$DATA2" --generator-run "$RUNS2/normals16" \
-        --baseline-run "$RUNS2/v7_interior_more" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" \
-        --threads 2 --out "${OUT8:-out/v8}/$EVAL_NAME" ;;
+      sketchmesh eval "$RUNS8/v8_mirror" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS8/v8_more" --baseline-run "$RUNS8/fifth/predictor" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT8/$EVAL_NAME" ;;
     compare-v7)  # the app's ONNX path: the four earlier bundled pairs (from git), the fifth, retrieval and the template
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
@@ -640,10 +690,13 @@ EOF
       for s in predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6; do
         step "$s"
       done ;;
+    fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
+      [ -f "$DATA2/manifest.json" ] || step data-v2
+      for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 val-v8; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 predictor-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v1)" >&2
       exit 2 ;;
   esac
 }
