@@ -24,8 +24,10 @@
 #   silhouette-only control trained as long (control-v7 logs-v7 eval-control-*-v7).
 # The sixth candidate (fresh-v8, into RUNS8 [runs/v8] and OUT8 [out/v8]; needs nothing but this repository): the fifth
 #   pair taken from git and imported back as training runs (models-fifth-v8 generated-v8 import-v8), its predictor trained
-#   on as it is and with mirrored items at equal time (predictor-v8) and measured against it (val-v8 eval-v8
-#   eval-strong-v8 eval-side-v8 eval-gt-v8).
+#   on as it is and with mirrored items at equal time (predictor-v8 mirror-check-v8) and measured against it (val-v8
+#   eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8), the plain run trained on (predictor-v8-more val-v8-more); all-v8
+#   then measures, exports, times and ships it (eval-*-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2
+#   refine-v2 docs-v2, into OUT8/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -473,6 +475,42 @@ EOF
       sketchmesh train mesh "${v8[@]}" --out "$RUNS8/v8_more" &
       sketchmesh train mesh "${v8[@]}" --mirror 0.5 --out "$RUNS8/v8_mirror" &
       wait ;;
+    predictor-v8-more)  # predictor-v8's plain run (v8_more: +0.004 on the validation split, the mirrored one +0.001)
+      # trained on alone on two threads: Adam 2e-4 cosine over V8B_ITERS [9000] (V8B_MINUTES [33] at most; resumes)
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS8/v8_more" --lambda-n 0.002 --lr-mesh 2e-4 \
+        --iters "${V8B_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V8B_MINUTES:-33}" --input-normals normals16 --no-normal-edges --out "$RUNS8/v8_more2" ;;
+    val-v8-more)  # the choice of the sixth predictor on the validation split: v8_more2 against v8_more and the fifth
+      sketchmesh eval "$RUNS8/v8_more2" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS8/v8_more" --baseline-run "$RUNS8/fifth/predictor" --no-retrieval \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT8/val_more" ;;
+    eval-v8b|eval-strong-v8b|eval-side-v8b|eval-gt-v8b)  # the chosen sixth predictor (PRED8 [v8_more2]) on the test split
+      # against v8_more and the fifth (imported), into OUT8/final (retrieval: eval-*-v7's, the same samples)
+      eval_case "$1"
+      sketchmesh eval "$RUNS8/${PRED8:-v8_more2}" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS8/v8_more" --baseline-run "$RUNS8/fifth/predictor" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT8/final/$EVAL_NAME" ;;
+    export-v8)  # the chosen predictor as float32 and int8 (the bundled one), each beside the fifth pair's generator file
+      for q in fp32 int8; do
+        rm -rf "$OUT8/final/models_$q"
+        local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
+        sketchmesh export "$RUNS8/${PRED8:-v8_more2}" -o "$OUT8/final/models_$q" "${quant[@]}"
+        cp "$OUT8/models_fifth/generator.onnx" "$OUT8/final/models_$q/"
+      done ;;
+    tradeoff-v8)  # error against run time in the app's engine: the sixth pair at each precision and template level
+      # (run it alone: it times)
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v8=$OUT8/final/models_fp32" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v8:int8-predictor \
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT8/final/tradeoff" ;;
+    compare-v8)  # the app's ONNX path: the five earlier bundled pairs (from git), the sixth, retrieval and the template
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5; do
+        mkdir -p "$OUT8/models_$c"
+        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT8/models_$c/$f"; done
+        folders+=(--models "$OUT8/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --models "$OUT8/final/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
+        --threads 2 --out "$OUT8/final/compare" ;;
     mirror-check-v8)  # how near a mirrored generated input is to what the generator makes of the mirrored sketch (what
       # --mirror approximates), beside the generator's own error against the true image: 96 training views, clean
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
@@ -692,11 +730,16 @@ EOF
       done ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
-      for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 val-v8; do step "$s"; done ;;
+      for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
+               eval-side-v8 eval-gt-v8 predictor-v8-more val-v8-more; do step "$s"; done ;;
+    all-v8)  # the sixth bundled models (after fresh-v8 and predictor-v8-more val-v8-more): measured, exported, timed, shipped
+      SHIP_MODELS=$OUT8/final/models_int8; SHIP_OUT=$OUT8/final; CENTRES=()
+      for s in eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2 \
+               refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 all-v1)" >&2
       exit 2 ;;
   esac
 }
