@@ -131,6 +131,8 @@ def test_training_with_mirrored_items_runs_and_resumes_identically(data_dir, tmp
         TrainConfig(mode="joint", mirror=0.5)
     with pytest.raises(ValueError, match="mirror"):
         TrainConfig(mode="mesh", mirror=1.5)
+    with pytest.raises(ValueError, match="mirror"):
+        TrainConfig(mode="mesh", mirror=0.5, supervision="3d")
 
 
 def test_framed_cameras_keep_the_mirror_exact():

@@ -16,9 +16,10 @@ What the export changed, and how it is undone:
 * **Folded batch norm.** The exporter folds each of the compact predictor's ``Conv -> BatchNorm``
   pairs into one convolution with a bias ``b'``. The convolution gets the folded weight; the batch
   norm is set so that it computes ``z + b'`` in eval mode exactly *and* in train mode for batches
-  like the calibration batch: with ``mu`` and ``sigma`` the per-channel mean and deviation of the
-  convolution's output ``z`` over a calibration batch of training inputs, ``gamma = sigma``,
-  ``beta = mu + b'``, ``running_mean = mu``, ``running_var = sigma^2 - eps``. (Gamma 1 and beta
+  like the calibration batch: with ``mu`` and ``var`` the per-channel mean and (biased) variance of
+  the convolution's output ``z`` over a calibration batch of training inputs,
+  ``gamma = sqrt(var + eps)``, ``beta = mu + b'``, ``running_mean = mu``, ``running_var = var``
+  (train mode divides by ``sqrt(var_batch + eps)``, eval mode by ``sqrt(running_var + eps)``). (Gamma 1 and beta
   ``b'`` would be exact in eval mode only: train mode would normalise every channel to unit
   deviation and start training from another function.)
 * **The offset basis** is the graph's own ``(V, M)`` matrix (the basis is not portable between
@@ -36,6 +37,7 @@ is written.
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -205,7 +207,7 @@ def load_generator(graph: _Graph, cfg: TrainConfig) -> nn.Module:
     from training.model.networks import NormalGenerator
 
     meta_c = graph.meta.get(contract.META_BASE_CHANNELS)
-    if meta_c is not None and int(meta_c) != cfg.base_channels:
+    if meta_c is not None and (not meta_c.strip().isdigit() or int(meta_c) != cfg.base_channels):
         raise ModelError(f"{graph.path}: base_channels {meta_c} in the metadata, {cfg.base_channels} in its config")
     g = NormalGenerator(cfg.base_channels, arch=cfg.generator_arch)
     for name, p in g.named_parameters():
@@ -276,12 +278,12 @@ def _set_batch_norms(p: nn.Module, pairs: list, folded_bias: list[torch.Tensor],
         side = calibration.shape[-1] >> (k + 1)
         n = n_images * side * side
         mu = sums[k] / n
-        var = (squares[k] / n - mu * mu).clamp_min(bn.eps)
+        var = (squares[k] / n - mu * mu).clamp_min(0.0)
         with torch.no_grad():
-            bn.weight.copy_(var.sqrt().float())
+            bn.weight.copy_((var + bn.eps).sqrt().float())
             bn.bias.copy_(mu.float() + b)
             bn.running_mean.copy_(mu.float())
-            bn.running_var.copy_((var - bn.eps).clamp_min(0.0).float())
+            bn.running_var.copy_(var.float())
 
 
 def calibration_inputs(cfg: TrainConfig, count: int = CALIBRATION_SAMPLES) -> tuple[torch.Tensor, str]:
@@ -302,10 +304,13 @@ def calibration_inputs(cfg: TrainConfig, count: int = CALIBRATION_SAMPLES) -> tu
         idx = np.linspace(0, len(ds) - 1, min(count, len(ds))).astype(int)
         key = "input64" if input_normals else "normals64"
         rows = []
-        for i in idx:
-            item = ds[int(i)]
-            x = item[key]
-            rows.append(torch.as_tensor(np.asarray(x), dtype=torch.float32).reshape(-1, *x.shape[-3:])[0])
+        try:
+            for i in idx:
+                x = ds[int(i)][key]
+                rows.append(torch.as_tensor(np.asarray(x), dtype=torch.float32).reshape(-1, *x.shape[-3:])[0])
+        except Exception as exc:  # noqa: BLE001 - a broken item of the dataset: say which folder
+            raise ModelError(f"cannot calibrate the predictor's batch norms: reading {cfg.data_dir} failed "
+                             f"({type(exc).__name__}: {exc})") from None
         what = f"generated set {input_normals}" if input_normals else "true normal images"
         return torch.stack(rows), f"{len(rows)} train inputs of {cfg.data_dir} ({what})"
     why = f" ({type(last).__name__}: {last})" if last else ""
@@ -377,8 +382,9 @@ def import_models(models_dir: str | Path, out_dir: str | Path, *, data_dir: str 
 
             cfg = cfg.replace(mode="normals")
             net = load_generator(graph, cfg)
-            torch.manual_seed(DISCRIMINATOR_SEED)
-            models = {"generator": net, "discriminator": PatchDiscriminator(cfg.base_channels)}
+            with torch.random.fork_rng(devices=[]):  # a seeded discriminator, the caller's RNG untouched
+                torch.manual_seed(DISCRIMINATOR_SEED)
+                models = {"generator": net, "discriminator": PatchDiscriminator(cfg.base_channels)}
             extra["discriminator"] = "fresh"
             tol = PARITY_TOLERANCE if quant == "none" else GENERATOR_INT8_TOLERANCE
         else:
@@ -389,7 +395,10 @@ def import_models(models_dir: str | Path, out_dir: str | Path, *, data_dir: str 
             extra["batch_norm_calibration"] = calib_note
             tol = PARITY_TOLERANCE if quant == "none" else INT8_TOLERANCE
         sketches, normals64, source = parity_inputs(cfg)
-        session = _session(path.read_bytes())
+        try:
+            session = _session(path.read_bytes())
+        except Exception as exc:  # noqa: BLE001 - ONNX Runtime's own exception types
+            raise ModelError(f"{path}: ONNX Runtime cannot run it ({type(exc).__name__}: {exc})") from None
         with torch.no_grad():
             if role == "generator":
                 ref = [net(sketches).numpy()]
@@ -404,8 +413,15 @@ def import_models(models_dir: str | Path, out_dir: str | Path, *, data_dir: str 
                              f"(max abs error {err:.3g} > {tol:.0e}); nothing written")
         built.append((role, cfg, models, path, extra, ImportReport(
             role, out_dir / role, path, quant, err, tol, source, calib_note, time.perf_counter() - t0)))
-    for role, cfg, models, path, extra, _ in built:
-        _write_run(out_dir / role, cfg, models, path, dict(extra))
+    written: list[Path] = []
+    try:  # both runs or neither: a half-written import would block the next try ("already holds a run")
+        for role, cfg, models, path, extra, _ in built:
+            written.append(out_dir / role)
+            _write_run(out_dir / role, cfg, models, path, dict(extra))
+    except BaseException:
+        for run in written:
+            shutil.rmtree(run, ignore_errors=True)
+        raise
     atomic_write_text(out_dir / "IMPORTED.json", json.dumps(
         {r.role: {"source": str(r.source), "quantization": r.quantization, "max_abs_error": r.max_abs_error,
                   "calibration": r.calibration} for *_, r in built}, indent=2) + "\n")

@@ -218,6 +218,8 @@ class TrainConfig:
             problems.append(f"mirror must be in [0, 1], got {self.mirror}")
         elif self.mirror and self.mode != "mesh":
             problems.append(f"mirror (mirrored training items) is for mesh mode only, not {self.mode!r}")
+        elif self.mirror and self.supervision == "3d":
+            problems.append("mirror does not apply to supervision '3d' (its targets are the unmirrored meshes)")
         if not 0 < float(self.input_share) <= 1:
             problems.append(f"input_share must be in (0, 1], got {self.input_share}")
         if self.silhouette not in ("eq1", "soft"):
