@@ -25,7 +25,7 @@
 # The sixth candidate (fresh-v8, into RUNS8 [runs/v8] and OUT8 [out/v8]; needs nothing but this repository): the fifth
 #   pair taken from git and imported back as training runs (models-fifth-v8 generated-v8 import-v8), its predictor trained
 #   on as it is and with mirrored items at equal time (predictor-v8 mirror-check-v8) and measured against it (val-v8
-#   eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8), the plain run trained on (predictor-v8-more val-v8-more); all-v8
+#   eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8), the plain run trained on (predictor-v8-more val-v8-more), their logs (logs-v8); all-v8
 #   then measures, exports, times and ships it (eval-*-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2
 #   refine-v2 docs-v2, into OUT8/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
@@ -96,6 +96,34 @@ eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, stron
     eval-gt-*) EVAL_EXTRA=(--gt-normals); EVAL_NAME=eval_gt_normals ;;
     *) EVAL_EXTRA=(); EVAL_NAME=eval_clean ;;
   esac
+}
+
+models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder $2
+  mkdir -p "$2"
+  for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
+}
+
+log_summary() {  # $1: runs folder, then run names: iterations, wall time, median rate, and the silhouette term and
+  # normal error over the first 100 and the last 1,000 iterations of each run's log.csv (runs without one are skipped)
+  python3 - "$@" <<'EOF'
+import csv, sys, numpy as np
+from pathlib import Path
+runs = Path(sys.argv[1])
+for name in sys.argv[2:]:
+    if not (runs / name / "log.csv").is_file():
+        continue
+    with open(runs / name / "log.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    it = np.array([int(r["iteration"]) for r in rows])
+    rate = np.median([float(r["it_per_s"]) for r in rows])
+    first = [r for r, i in zip(rows, it) if i <= it.min() + 99]
+    last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
+    (sil0, nrm0), (sil, nrm) = [[np.mean([float(r[k]) for r in part]) for k in ("mesh_silhouette", "mesh_normal")]
+                                for part in (first, last)]
+    print(f"{name}: {it.max()} iterations, {float(rows[-1]['wall_s']) / 60:.1f} min, median {rate:.2f} it/s; "
+          f"first 100: silhouette term {sil0:.4f}, normal error {nrm0:.1f}; last 1,000: silhouette term {sil:.4f}, "
+          f"normal error {nrm:.1f}")
+EOF
 }
 
 step() {
@@ -435,27 +463,13 @@ EOF
         --threads 2 --out "$OUT7/control_$EVAL_NAME" ;;
     logs-v7)  # predictor-v7's and control-v7's training logs: rate, and the silhouette term and normal error over
       # their last 1,000 iterations (where a run was stopped and resumed, wall time counts the invocations' own)
-      python3 - "$RUNS2" <<'EOF'
-import csv, sys, numpy as np
-from pathlib import Path
-runs = Path(sys.argv[1])
-for name in ("v6_full_interior", "v4_generated_last", "v7_interior_more", "v7_silhouette_more"):
-    if not (runs / name / "log.csv").is_file():
-        continue
-    with open(runs / name / "log.csv", newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    it = np.array([int(r["iteration"]) for r in rows])
-    rate = np.median([float(r["it_per_s"]) for r in rows])
-    last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
-    sil, nrm = (np.mean([float(r[k]) for r in last]) for k in ("mesh_silhouette", "mesh_normal"))
-    print(f"{name}: {it.max()} iterations, median {rate:.2f} it/s; last 1,000: silhouette term {sil:.4f}, "
-          f"normal error {nrm:.1f}")
-EOF
-      ;;
+      log_summary "$RUNS2" v6_full_interior v4_generated_last v7_interior_more v7_silhouette_more ;;
+    logs-v8)  # the v8 runs' training logs: rate and wall time, the silhouette term and normal error over their first 100
+      # and last 1,000 iterations
+      log_summary "$RUNS8" v8_more v8_mirror v8_more2 ;;
     models-fifth-v8)  # the fifth bundled pair as shipped (git FIFTH [5b01fa5]) into OUT8/models_fifth: what the v8
       # steps start from, on any machine (its training runs stayed on the machine that trained it)
-      mkdir -p "$OUT8/models_fifth"
-      for f in generator.onnx mesh_predictor.onnx; do git show "${FIFTH:-5b01fa5}:assets/models/$f" > "$OUT8/models_fifth/$f"; done ;;
+      models_from_git "${FIFTH:-5b01fa5}" "$OUT8/models_fifth" ;;
     generated-v8)  # generated-v4's inputs from the fifth pair's generator (the same generator: the same images), 14 min
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       sketchmesh data generated "$DATA2" --models "$OUT8/models_fifth" --name normals16 --workers 2 ;;
@@ -505,8 +519,7 @@ EOF
     compare-v8)  # the app's ONNX path: the five earlier bundled pairs (from git), the sixth, retrieval and the template
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5; do
-        mkdir -p "$OUT8/models_$c"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT8/models_$c/$f"; done
+        models_from_git "$c" "$OUT8/models_$c"
         folders+=(--models "$OUT8/models_$c")
       done
       sketchmesh eval "${folders[@]}" --models "$OUT8/final/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
@@ -551,8 +564,7 @@ EOF
     compare-v7)  # the app's ONNX path: the four earlier bundled pairs (from git), the fifth, retrieval and the template
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
-        mkdir -p "$OUT7/models_$c"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT7/models_$c/$f"; done
+        models_from_git "$c" "$OUT7/models_$c"
         folders+=(--models "$OUT7/models_$c")
       done
       sketchmesh eval "${folders[@]}" --models "$OUT7/models_int8" --data "$DATA2" --views 4 --max-samples 39 --threads 2 \
@@ -570,8 +582,7 @@ EOF
     compare-v6)  # compare-v4's app path (the four bundled pairs from git, retrieval, the template sphere), surface measure
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a; do
-        mkdir -p "$OUT6/models_$c"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT6/models_$c/$f"; done
+        models_from_git "$c" "$OUT6/models_$c"
         folders+=(--models "$OUT6/models_$c")
       done
       sketchmesh eval "${folders[@]}" --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$OUT6/compare" ;;
@@ -594,8 +605,7 @@ EOF
     compare-v4)  # the app's ONNX path: the four bundled pairs in turn (from git), retrieval and the template sphere
       local folders=()
       for c in 2e5204b cc51aaf 0c5ab8e; do
-        mkdir -p "$OUT4/models_$c"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$c:assets/models/$f" > "$OUT4/models_$c/$f"; done
+        models_from_git "$c" "$OUT4/models_$c"
         folders+=(--models "$OUT4/models_$c")
       done
       sketchmesh eval "${CENTRES[@]}" "${folders[@]}" --models "$OUT4/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
@@ -633,12 +643,10 @@ EOF
       sketchmesh bench refine "${CENTRES[@]}" --data "$DATA2" --max-samples "$SAMPLES2" --out "$SHIP_OUT/refine" ;;
     compare-v2)  # the app's ONNX path on the new test split: the first bundled models (from git) against the
       # candidate pairs, with retrieval and the template sphere as floors (`sketchmesh eval --models`)
-      mkdir -p "$OUT2/models_v1"
-      for f in generator.onnx mesh_predictor.onnx; do git show "2e5204b:assets/models/$f" > "$OUT2/models_v1/$f"; done
+      models_from_git "2e5204b" "$OUT2/models_v1"
       local prev=()
       if [ -n "${PREV_MODELS:-}" ]; then  # all-gpu: the second bundled models too (issue 16, CPU-trained)
-        mkdir -p "$OUT2/models_v2"
-        for f in generator.onnx mesh_predictor.onnx; do git show "$PREV_MODELS:assets/models/$f" > "$OUT2/models_v2/$f"; done
+        models_from_git "$PREV_MODELS" "$OUT2/models_v2"
         prev=(--models "$OUT2/models_v2")
       fi
       sketchmesh eval "${CENTRES[@]}" --models "$OUT2/models_v1" "${prev[@]}" --models "$OUT2/models_silhouette_int8" --models "$OUT2/models_int8" \
@@ -731,7 +739,7 @@ EOF
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
       for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
-               eval-side-v8 eval-gt-v8 predictor-v8-more val-v8-more; do step "$s"; done ;;
+               eval-side-v8 eval-gt-v8 predictor-v8-more val-v8-more logs-v8; do step "$s"; done ;;
     all-v8)  # the sixth bundled models (after fresh-v8 and predictor-v8-more val-v8-more): measured, exported, timed, shipped
       SHIP_MODELS=$OUT8/final/models_int8; SHIP_OUT=$OUT8/final; CENTRES=()
       for s in eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2 \
@@ -739,7 +747,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 all-v1)" >&2
       exit 2 ;;
   esac
 }

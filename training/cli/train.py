@@ -291,15 +291,12 @@ def _cmd_import(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
-    from engine.models import resolve_models_dir
+    from training.evaluation.models_eval import models_folder
     from training.export.from_onnx import import_models
 
-    src = args.models
-    if src == "bundled" and not Path(src).exists():
-        src = resolve_models_dir(None)
     check_output_dir(args.out, "--out")
     roles = (args.only,) if args.only else ("generator", "predictor")
-    reports = import_models(src, args.out, data_dir=args.data, roles=roles, calibration=args.calibration)
+    reports = import_models(models_folder(args.models), args.out, data_dir=args.data, roles=roles, calibration=args.calibration)
     for r in reports:
         print(r.line())
     print(f"parity inputs: {reports[0].parity_inputs}")

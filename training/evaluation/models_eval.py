@@ -66,6 +66,14 @@ TEMPLATE = "template"
 RETRIEVAL = "retrieval"
 
 
+def models_folder(spec: str) -> Path:
+    """The model folder a ``--models``-style argument names: ``bundled`` is the app's (unless a folder of that name
+    exists here), anything else a path."""
+    from engine.models import resolve_models_dir
+
+    return resolve_models_dir(None if spec == BUNDLED and not Path(spec).exists() else spec)
+
+
 class ModelsEvalError(SketchmeshError):
     """The model-folder evaluation cannot run (bad flags, empty split, unusable dataset)."""
 
@@ -77,16 +85,11 @@ def resolve_model_folders(specs) -> list[tuple[str, Path]]:
     Labels are the folder names, or the paths where two names clash. Existence and validity are
     checked when the engines load (:func:`open_engines`).
     """
-    from engine.models import resolve_models_dir
-
     out: list[tuple[str, Path]] = []
     for spec in specs:
         spec = str(spec)
-        if spec == BUNDLED and not Path(spec).exists():
-            label, path = BUNDLED, resolve_models_dir(None)
-        else:
-            path = resolve_models_dir(spec)
-            label = path.name or str(path)
+        path = models_folder(spec)
+        label = BUNDLED if spec == BUNDLED and not Path(spec).exists() else path.name or str(path)
         if any(p.resolve() == path.resolve() for _, p in out):
             raise ModelsEvalError(f"--models {spec}: the same model folder is given twice")
         if any(lab == label for lab, _ in out) or label in (TEMPLATE, RETRIEVAL):

@@ -74,7 +74,7 @@ class ImportReport:
     def line(self) -> str:
         extra = f"  batch norm: {self.calibration}" if self.calibration else ""
         return (f"{self.role:15s} {self.source.name:22s} -> {self.run_dir}  quant {self.quantization}  "
-                f"max|torch-ort| {self.max_abs_error:.2e} (tol {self.tolerance:.0e}){extra}")
+                f"max|torch-ort| {self.max_abs_error:.2e} (tol {self.tolerance:.0e}){extra}  {self.seconds:.1f} s")
 
 
 class _Graph:
@@ -255,12 +255,14 @@ def _set_batch_norms(p: nn.Module, pairs: list, folded_bias: list[torch.Tensor],
         return
     sums = [torch.zeros_like(b, dtype=torch.float64) for b in folded_bias]
     squares = [torch.zeros_like(s) for s in sums]
+    counts = [0] * len(pairs)
 
     def hook(k):
         def fn(_module, _inp, out):
             z = out.detach().double()
             sums[k] += z.sum(dim=(0, 2, 3))
             squares[k] += (z * z).sum(dim=(0, 2, 3))
+            counts[k] += z.numel() // z.shape[1]
         return fn
 
     handles = [conv.register_forward_hook(hook(k)) for k, (conv, _) in enumerate(pairs)]
@@ -272,13 +274,9 @@ def _set_batch_norms(p: nn.Module, pairs: list, folded_bias: list[torch.Tensor],
     finally:
         for h in handles:
             h.remove()
-    # convolution k (stride 2) gives side / 2^(k+1) pixels a side per image
-    n_images = calibration.shape[0]
-    for k, ((_conv, bn), b) in enumerate(zip(pairs, folded_bias)):
-        side = calibration.shape[-1] >> (k + 1)
-        n = n_images * side * side
-        mu = sums[k] / n
-        var = (squares[k] / n - mu * mu).clamp_min(0.0)
+    for (_conv, bn), b, s, q, n in zip(pairs, folded_bias, sums, squares, counts):
+        mu = s / n
+        var = (q / n - mu * mu).clamp_min(0.0)
         with torch.no_grad():
             bn.weight.copy_((var + bn.eps).sqrt().float())
             bn.bias.copy_(mu.float() + b)
