@@ -192,3 +192,96 @@ def test_config_and_cli_errors_are_one_line(setup, tmp_path):
     assert r.returncode != 0 and "Traceback" not in r.stderr and "does not exist" in r.stderr
     r = subprocess.run([*cli, "--models", str(tmp_path), "--workers", "0"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr and "--workers" in r.stderr
+
+
+def test_a_mirrored_set_is_the_engine_on_the_flipped_drawing(setup):
+    """--mirror rows: the app engine's normals of the same augmented drawing flipped left to right."""
+    data, models = setup
+    build_generated(data, models, "flip", augment_strength=0.7, seed=3, mirror=True, progress=False)
+    build_generated(data, models, "noflip", augment_strength=0.7, seed=3, progress=False)
+    g, plain = open_generated(data, "flip"), open_generated(data, "noflip")
+    assert g.info["mirror"] is True and plain.info["mirror"] is False
+    engine = SketchEngine(models, threads=1)
+    engine.load()
+    arrays = open_mesh_cache(data)
+    s = next(s for s in json.loads((data / "manifest.json").read_text())["shapes"] if s["split"] == "train")
+    first, nv = arrays.rows[s["file"]]
+    with np.load(data / s["file"]) as z:
+        polys = {k: z[k] for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+    for v in range(nv):
+        sketch = render_sketch(view_polylines(polys, v), 256, 0.7, [3, ROW_SEED, first + v])
+        x = np.ascontiguousarray(sketch[:, ::-1], np.float32)[None, None]
+        (normals,) = engine._generator.session.run(None, {engine._generator.input_name: x})
+        np.testing.assert_allclose(g.rows(np.array([first + v]))[0], downsample_normals(np.clip(normals, 0, 1))[0],
+                                   atol=2e-3)
+        assert not np.allclose(g.rows(np.array([first + v])), plain.rows(np.array([first + v])), atol=1e-2)
+    with pytest.raises(DatasetError, match="other mirror"):  # a mirrored folder is not resumed as a plain one
+        build_generated(data, models, "flip", augment_strength=0.7, seed=3, progress=False)
+
+
+def test_mirrored_items_read_their_exact_inputs(setup):
+    """input64_mirror: the mirrored set's row (generated items) or the true image mirrored exactly (true items);
+    mirror_batch puts it in place of a flagged item's flipped input and drops it."""
+    from training.data.mirror import mirror_batch, mirror_normal_image
+
+    data, models = setup
+    build_generated(data, models, "m_in", progress=False)
+    build_generated(data, models, "m_in_flip", mirror=True, progress=False)
+    gm = open_generated(data, "m_in_flip")
+    ds = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="m_in", mirror_inputs="m_in_flip")
+    rows = [ds._arrays.row(ds._shapes[si]["file"]) + v for si, v in ds._items]
+    items = ds.__getitems__(list(range(len(ds))))
+    for i, item in enumerate(items):
+        np.testing.assert_array_equal(item["input64_mirror"].numpy(), gm.rows(np.array([rows[i]]))[0])
+        np.testing.assert_array_equal(ds[i]["input64_mirror"].numpy(), item["input64_mirror"].numpy())
+    half = ShapeViewDataset(data, "train", extra_views=1, fields="mesh", input_normals="m_in",
+                            mirror_inputs="m_in_flip", input_share=0.5, seed=1)
+    picked = [half.uses_generated(i) for i in range(len(half))]
+    assert 0 < sum(picked) < len(half)
+    for i, item in enumerate(half.__getitems__(list(range(len(half))))):
+        want = (gm.rows(np.array([rows[i]]))[0] if picked[i]
+                else mirror_normal_image(item["normals64"], item["silhouette64"]).numpy())
+        np.testing.assert_allclose(item["input64_mirror"].numpy(), want, atol=1e-6)
+    batch = torch.utils.data.default_collate(items[:2])
+    out = mirror_batch(batch, torch.tensor([False, True]))
+    assert "input64_mirror" not in out and "input64_mirror" not in mirror_batch(batch, torch.tensor([False, False]))
+    assert torch.equal(out["input64"][0], batch["input64"][0])
+    assert torch.equal(out["input64"][1], batch["input64_mirror"][1])
+    build_generated(data, models, "m_in_flip_s1", mirror=True, seed=1, progress=False)
+    for bad, match in (("m_in", "must be a mirrored set"), ("m_in_flip_s1", "differ in seed"),
+                       ("m_in_flip,m_in_flip_s1", "one mirrored set per input set")):
+        with pytest.raises(DatasetError, match=match):
+            ShapeViewDataset(data, "train", fields="mesh", input_normals="m_in", mirror_inputs=bad)
+    with pytest.raises(DatasetError, match="needs input_normals"):
+        ShapeViewDataset(data, "train", fields="mesh", mirror_inputs="m_in_flip")
+    with pytest.raises(ValueError, match="mirror_inputs .* needs mirror > 0"):
+        TrainConfig(mode="mesh", data_dir=str(data), input_normals="m_in", mirror_inputs="m_in_flip")
+
+
+def test_training_with_exact_mirrored_inputs(setup, tmp_path, monkeypatch):
+    """A run with mirror_inputs whose rows are the flipped generated images is the run without them, bit for bit;
+    with the real mirrored rows it differs."""
+    from training.data.mirror import mirror_normal_image
+
+    data, models = setup
+    build_generated(data, models, "t_in", progress=False)
+    build_generated(data, models, "t_in_flip", mirror=True, progress=False)
+    cfg = TrainConfig(mode="mesh", data_dir=str(data), iters=2, input_normals="t_in", mirror=1.0, **TINY)
+    approx = Trainer(cfg.replace(out_dir=str(tmp_path / "approx")), progress=False)
+    approx.run()
+    exact = Trainer(cfg.replace(out_dir=str(tmp_path / "exact"), mirror_inputs="t_in_flip"), progress=False)
+    exact.run()
+    a, b = approx.models["predictor"].state_dict(), exact.models["predictor"].state_dict()
+    assert not all(torch.equal(a[k], b[k]) for k in a)
+    g, gm = open_generated(data, "t_in"), open_generated(data, "t_in_flip")
+    monkeypatch.setattr(type(gm), "rows", lambda self, rows: mirror_normal_image(
+        torch.from_numpy(_stored_rows(g, rows))).numpy() if self.info["mirror"] else _stored_rows(g, rows))
+    same = Trainer(cfg.replace(out_dir=str(tmp_path / "same"), mirror_inputs="t_in_flip"), progress=False)
+    same.run()
+    c = same.models["predictor"].state_dict()
+    assert all(torch.equal(a[k], c[k]) for k in a)
+
+
+def _stored_rows(g, rows):  # the unpatched rows of a generated set (the test above patches the method)
+    rows = np.asarray(rows, np.int64)
+    return np.ascontiguousarray(g.normals64[rows].transpose(0, 3, 1, 2), np.float32)

@@ -108,6 +108,9 @@ def register(commands, bench) -> None:
     gen.add_argument("--seed", type=int, default=0)
     gen.add_argument("--workers", type=int_in(1, 256), default=1, help="processes, one thread each (1: one, two threads)")
     gen.add_argument("--max-shapes", type=positive_int, default=None, help="stop after this many shapes (resume later)")
+    gen.add_argument("--mirror", action="store_true",
+                     help="run the generator on every drawing flipped left to right: the exact inputs of mirrored "
+                          "training items (train mesh --mirror P --mirror-inputs NAME)")
     gen.add_argument("--no-progress", action="store_true", help="no progress bar")
     gen.set_defaults(func=cmd_generated)
 
@@ -196,7 +199,8 @@ def cmd_generated(args: argparse.Namespace) -> int:
     from training.data.generated import build_generated
 
     r = build_generated(args.dir, args.models, args.name, split=args.split, augment_strength=args.augment_strength,
-                        seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes)
+                        seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes,
+                        mirror=args.mirror)
     print(f"{r['written']} views generated in {r['seconds']:.1f} s; {r['done']} of the {r['views']} views of the "
           f"{args.split} split are done")
     return 0

@@ -616,6 +616,12 @@ class ShapeViewDataset(_DatasetBase):
             of set ``i // V`` (V views), so an epoch shows each view once per set.
         input_share: share of items whose ``input64`` is the generated image (the others get the
             true normal image), fixed per (seed, item); in (0, 1].
+        mirror_inputs: with ``input_normals`` only: the mirrored sets (``sketchmesh data generated
+            --mirror``), one per input set and in the same order, each built from the same
+            generator, augmentation and seed as its partner. Items then also hold
+            ``input64_mirror``, the input of the item's mirror image (:mod:`training.data.mirror`):
+            the generator's image of the flipped drawing, or for an item that reads the true image
+            the true image mirrored exactly.
 
     ``__getitem__(i)`` returns a dict of torch tensors (NCHW without N, float32 in [0, 1]):
     ``sketch`` (1, S, S) 1 = ink; ``normals`` (3, S, S); ``silhouette`` (1, S, S);
@@ -635,7 +641,7 @@ class ShapeViewDataset(_DatasetBase):
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
                  seed: int = 0, categories: Sequence[str] | None = None, shape_ids: Sequence[str] | None = None,
                  fields: str = "all", mesh_cache: str = "auto", input_normals: str | Sequence[str] | None = None,
-                 input_share: float = 1.0) -> None:
+                 input_share: float = 1.0, mirror_inputs: str | Sequence[str] | None = None) -> None:
         self.root = Path(root)
         if split not in ("train", "val", "test", "all"):
             raise DatasetError(f"split must be 'train', 'val', 'test' or 'all', got {split!r}")
@@ -703,6 +709,31 @@ class ShapeViewDataset(_DatasetBase):
                                        f"{self._arrays.normals64.shape[0]}: it was built for another state of {self.root}")
             self._views = len(self._items)  # item i: view i % V with the input of set i // V
             self._items = self._items * len(self._inputs)
+        self._mirrors = None  # generated inputs of the mirrored drawings, paired with self._inputs
+        if mirror_inputs:
+            if self._inputs is None:
+                raise DatasetError("mirror_inputs needs input_normals (the unmirrored sets they pair with)")
+            self._mirrors = self._open_mirrors(mirror_inputs)
+
+    def _open_mirrors(self, mirror_inputs: str | Sequence[str]) -> list:
+        """The mirrored generated sets, checked against their partners in ``self._inputs``."""
+        from training.data.generated import open_generated
+
+        names = mirror_inputs.split(",") if isinstance(mirror_inputs, str) else list(mirror_inputs)
+        names = [n.strip() for n in names]
+        if not all(names) or len(names) != len(self._inputs):
+            raise DatasetError(f"mirror_inputs must name one mirrored set per input set ({len(self._inputs)}), "
+                               f"got {mirror_inputs!r}")
+        mirrors = [open_generated(self.root, n) for n in names]
+        for m, g in zip(mirrors, self._inputs):
+            if not m.info.get("mirror", False) or g.info.get("mirror", False):
+                raise DatasetError(f"{m.folder} must be a mirrored set (sketchmesh data generated --mirror) and "
+                                   f"{g.folder} an unmirrored one")
+            diff = [k for k in ("generator_sha256", "augment_strength", "seed", "rows", "small_size", "row_files")
+                    if m.info.get(k) != g.info.get(k)]
+            if diff:
+                raise DatasetError(f"{m.folder} is not the mirror of {g.folder}: they differ in {', '.join(diff)}")
+        return mirrors
 
     def __len__(self) -> int:
         return len(self._items)
@@ -778,6 +809,8 @@ class ShapeViewDataset(_DatasetBase):
         }
         if self._inputs is not None:
             batch["input64"] = torch.from_numpy(self._input_rows(idx, rows))
+        if self._mirrors is not None:
+            batch["input64_mirror"] = torch.from_numpy(self._input_rows(idx, rows, mirrored=True))
         return [{**{k: v[b] for k, v in batch.items()}, "category": r["category"], "shape_id": r["shape_id"],
                  "view": int(views[b])} for b, r in enumerate(recs)]
 
@@ -787,14 +820,19 @@ class ShapeViewDataset(_DatasetBase):
             return False
         return self.input_share >= 1.0 or bool(np.random.default_rng([self.seed, 104729, i]).random() < self.input_share)
 
-    def _input_rows(self, idx: Sequence[int], rows: np.ndarray) -> np.ndarray:
-        """(B, 3, s, s) float32 predictor inputs of items ``idx`` (mesh-cache rows ``rows``)."""
+    def _input_rows(self, idx: Sequence[int], rows: np.ndarray, mirrored: bool = False) -> np.ndarray:
+        """(B, 3, s, s) float32 predictor inputs of items ``idx`` (mesh-cache rows ``rows``); of their mirrors if ``mirrored``."""
+        sets_used = self._mirrors if mirrored else self._inputs
         pick = np.array([self.uses_generated(i) for i in idx], bool)
         sets = np.asarray(idx, np.int64) // self._views
-        if pick.all() and len(self._inputs) == 1:  # the default (one set, input_share 1): no true image is read
-            return self._inputs[0].rows(rows)
+        if pick.all() and len(sets_used) == 1:  # the default (one set, input_share 1): no true image is read
+            return sets_used[0].rows(rows)
         out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
-        for k, g in enumerate(self._inputs):
+        if mirrored:  # the true images' exact mirrors (training.data.mirror): red = silhouette - red, flipped
+            sil = self._arrays.silhouette64[rows].astype(np.float32)
+            out[:, 0] = np.clip(sil - out[:, 0], 0.0, 1.0)
+            out = np.ascontiguousarray(out[..., ::-1])
+        for k, g in enumerate(sets_used):
             sel = pick & (sets == k)
             if sel.any():
                 out[sel] = g.rows(rows[sel])
@@ -819,6 +857,9 @@ class ShapeViewDataset(_DatasetBase):
                 n64, s64, cams, v, others = a.normals64, a.silhouette64, a.cameras, row + v, row + others
                 if self._inputs is not None:
                     extra["input64"] = torch.from_numpy(self._input_rows([i], np.array([v], np.int64))[0])
+                if self._mirrors is not None:
+                    extra["input64_mirror"] = torch.from_numpy(
+                        self._input_rows([i], np.array([v], np.int64), mirrored=True)[0])
             else:
                 p = self._path(rec)
                 n64, s64, cams = (self._cache.get(p, k) for k in ("normals64", "silhouette64", "cameras"))

@@ -9,7 +9,13 @@ results beside the dataset, so a mesh-mode run can read them as its input
 
     DIR/.cache/generated/NAME/normals64.npy   (N, s, s, 3) float16, row r = row r of the mesh-array cache
     DIR/.cache/generated/NAME/done.npy        (N,) bool: rows written
-    DIR/.cache/generated/NAME/info.json       generator (path, sha256), augmentation, seed, rows
+    DIR/.cache/generated/NAME/info.json       generator (path, sha256), augmentation, seed, rows, mirror
+
+A mirrored set (``mirror=True``) holds the generator's images of the same drawings flipped left to
+right: the exact input of a mirrored training item (:mod:`training.data.mirror`), where flipping
+the generator's image of the unflipped drawing only approximates what the generator makes of the
+flipped one (the generator is not mirror-equivariant). Pair it with its unmirrored partner through
+``TrainConfig.mirror_inputs``.
 
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
 them, so a killed build keeps what it finished. A folder made from another generator, augmentation,
@@ -110,7 +116,7 @@ def _worker_init(generator_path: str, threads: int) -> None:
 
 def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
     """(file, (views, s, s, 3) float16) for one shape file: augmented sketches through the generator."""
-    path, file, first, n_views, strength, seed, small = args
+    path, file, first, n_views, strength, seed, small, mirror = args
     from engine.pipeline import downsample_normals
     from training.data.augment import render_sketch
     from training.data.render import view_polylines
@@ -122,6 +128,8 @@ def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
     out = np.empty((n_views, small, small, 3), np.float16)
     for v in range(n_views):
         sketch = render_sketch(view_polylines(arrays, v), size, strength, [seed, ROW_SEED, first + v])
+        if mirror:  # the same drawing, flipped left to right (pixel centres are symmetric about the middle)
+            sketch = sketch[..., ::-1]
         (normals,) = gen.session.run(None, {gen.input_name: np.ascontiguousarray(sketch, np.float32)[None, None]})
         if not np.all(np.isfinite(normals)):
             raise DatasetError(f"{gen.path}: the generator produced NaN or inf for {file} view {v}")
@@ -132,7 +140,7 @@ def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
 
 def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name: str, *, split: str = "train",
                     augment_strength: float = 0.5, seed: int = 0, workers: int = 1, progress: bool = True,
-                    max_shapes: int | None = None) -> dict:
+                    max_shapes: int | None = None, mirror: bool = False) -> dict:
     """Run the generator of ``models_dir`` over every view of ``split`` of the dataset ``root``; resumable.
 
     Args:
@@ -145,6 +153,7 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
         workers: processes, one ONNX Runtime thread each.
         progress: tqdm bar.
         max_shapes: only the first this many shapes still to do (a bounded call; it resumes later).
+        mirror: run the generator on every drawing flipped left to right (module doc).
 
     Returns:
         {"written": views this call, "done": views of the split done, "views": views of the split, "seconds"}.
@@ -171,10 +180,12 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     small = int(arrays.normals64.shape[1])
     info = {"format": FORMAT, "generator": str(gen_path.resolve()), "generator_sha256": _sha256(gen_path),
             "augment_strength": float(augment_strength), "seed": int(seed), "rows": n_rows, "small_size": small,
-            "row_files": hashlib.sha256(json.dumps(sorted(arrays.rows.items())).encode()).hexdigest()}
+            "row_files": hashlib.sha256(json.dumps(sorted(arrays.rows.items())).encode()).hexdigest(),
+            "mirror": bool(mirror)}
     folder = generated_dir(root, name)
     if (folder / "info.json").exists():
         old = json.loads((folder / "info.json").read_text())
+        old.setdefault("mirror", False)  # folders built before mirrored sets existed
         diff = [k for k in info if k != "generator" and old.get(k) != info[k]]
         if diff:
             raise DatasetError(f"{folder} was built with other {', '.join(diff)}; choose another --name or delete it")
@@ -192,7 +203,8 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     for s in shapes:
         first, nv = arrays.rows[s["file"]]
         if not done[first:first + nv].all():
-            todo.append((str(root / s["file"]), s["file"], first, nv, float(augment_strength), int(seed), small))
+            todo.append((str(root / s["file"]), s["file"], first, nv, float(augment_strength), int(seed), small,
+                         bool(mirror)))
     if max_shapes is not None:
         todo = todo[:max_shapes]
     total_views = sum(arrays.rows[s["file"]][1] for s in shapes)

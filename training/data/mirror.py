@@ -66,8 +66,14 @@ def mirror_batch(batch: dict, flags: torch.Tensor) -> dict:
     """A mesh-mode batch with the items where ``flags`` (B,) is true mirrored (module doc); others untouched.
 
     Reads and returns ``normals64``, ``silhouette64``, ``camera``, ``other_*`` and ``input64`` where present.
+    ``input64_mirror`` (the dataset's exact inputs of the mirrored items, ``mirror_inputs``), where
+    present, replaces a mirrored item's ``input64`` instead of the flipped image, and is dropped
+    from the batch returned.
     """
     flags = flags.to(torch.bool)
+    exact = batch.get("input64_mirror")
+    if exact is not None:
+        batch = {k: v for k, v in batch.items() if k != "input64_mirror"}
     if not bool(flags.any()):
         return batch
     out = dict(batch)
@@ -87,7 +93,7 @@ def mirror_batch(batch: dict, flags: torch.Tensor) -> dict:
         put("other_silhouette64", batch["other_silhouette64"][sel].flip(-1))
         put("other_cameras", mirror_cameras(cam, batch["other_cameras"][sel]))
     if "input64" in batch:
-        put("input64", mirror_normal_image(batch["input64"][sel]))
+        put("input64", exact[sel] if exact is not None else mirror_normal_image(batch["input64"][sel]))
     return out
 
 

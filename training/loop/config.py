@@ -100,6 +100,10 @@ class TrainConfig:
         mirror: mesh mode: the share of training items mirrored at each step (drawn anew per step),
             the scene reflected in the input camera's vertical plane with every image and camera
             (:mod:`training.data.mirror`); in [0, 1], default 0 (off).
+        mirror_inputs: with ``mirror`` and ``input_normals``: the mirrored generated sets
+            (``sketchmesh data generated --mirror``), one per ``input_normals`` set, joined by
+            commas; a mirrored item then reads the generator's image of its flipped drawing
+            instead of its generated image flipped (which only approximates it). "" (default): off.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
         edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
@@ -170,6 +174,7 @@ class TrainConfig:
     input_normals: str = ""
     input_share: float = 1.0
     mirror: float = 0.0
+    mirror_inputs: str = ""
     sketch_size: int = 256
     render_size: int = 64
     delta: float = 1.0
@@ -220,6 +225,8 @@ class TrainConfig:
             problems.append(f"mirror (mirrored training items) is for mesh mode only, not {self.mode!r}")
         elif self.mirror and self.supervision == "3d":
             problems.append("mirror does not apply to supervision '3d' (its targets are the unmirrored meshes)")
+        if self.mirror_inputs and not (self.mirror and self.input_normals):
+            problems.append("mirror_inputs (exact inputs of mirrored items) needs mirror > 0 and input_normals")
         if not 0 < float(self.input_share) <= 1:
             problems.append(f"input_share must be in (0, 1], got {self.input_share}")
         if self.silhouette not in ("eq1", "soft"):

@@ -226,6 +226,7 @@ def make_dataset(cfg: TrainConfig, split: str, fields: str = "all"):
             root, split, extra_views=cfg.extra_views, augment_strength=cfg.augment_strength if split == "train" else 0.0,
             seed=cfg.seed, categories=list(cfg.categories) or None, fields=fields,
             input_normals=cfg.input_normals if generated else None, input_share=cfg.input_share,
+            mirror_inputs=cfg.mirror_inputs if generated and cfg.mirror > 0 else None,
         )
     except SketchmeshError:
         raise
