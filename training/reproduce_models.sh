@@ -28,6 +28,11 @@
 #   eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8), the plain run trained on (predictor-v8-more val-v8-more), their logs (logs-v8); all-v8
 #   then measures, exports, times and ships it (eval-*-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2
 #   refine-v2 docs-v2, into OUT8/final).
+# The seventh candidate (fresh-v9 after fresh-v8 and predictor-v8-more, into RUNS9 [runs/v9] and OUT9 [out/v9]): the
+#   generator's images of the mirrored drawings (generated-mirror-v9), the sixth predictor (v8_more2) trained on as
+#   it is and with half of every batch mirrored from those exact inputs at equal time (predictor-v9), chosen on the
+#   validation split (val-v9), measured (eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9); all-v9 then exports,
+#   times and ships it (export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2, into OUT9/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -74,6 +79,8 @@ OUT6=${OUT6:-out/v6}
 OUT7=${OUT7:-out/v7}
 RUNS8=${RUNS8:-runs/v8}
 OUT8=${OUT8:-out/v8}
+RUNS9=${RUNS9:-runs/v9}
+OUT9=${OUT9:-out/v9}
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
 # centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
@@ -736,6 +743,53 @@ EOF
       for s in predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6; do
         step "$s"
       done ;;
+    generated-mirror-v9)  # generated-v8's drawings flipped left to right through the same generator (the exact inputs
+      # of mirrored items; data generated --mirror), 14 min
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data generated "$DATA2" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    predictor-v9)  # two candidates for the seventh predictor at equal wall time, side by side on one thread each,
+      # from the sixth (v8_more2) with its loss, Adam 2e-4 cosine over V9_ITERS [12500] (V9_MINUTES [65] at most;
+      # resumes): trained on as it is (v9_more) and with half of every batch mirrored, a mirrored item reading the
+      # generator's image of its flipped drawing (v9_mirror, --mirror 0.5 --mirror-inputs normals16_mirror)
+      [ -f "$RUNS8/v8_more2/config.json" ] || { echo "predictor-v9 starts from $RUNS8/v8_more2: run fresh-v8 and predictor-v8-more first" >&2; exit 1; }
+      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
+      local v9=(--data "$DATA2" --init-mesh "$RUNS8/v8_more2" --lambda-n 0.002 --lr-mesh 2e-4
+        --iters "${V9_ITERS:-12500}" --threads 1 --ckpt-every 250 --val-every 0 --quiet
+        --max-minutes "${V9_MINUTES:-65}" --input-normals normals16 --no-normal-edges)
+      sketchmesh train mesh "${v9[@]}" --out "$RUNS9/v9_more" &
+      sketchmesh train mesh "${v9[@]}" --mirror 0.5 --mirror-inputs normals16_mirror --out "$RUNS9/v9_mirror" &
+      wait ;;
+    val-v9)  # predictor-v9's two runs against the sixth predictor on the validation split, clean sketches
+      sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/val_clean" ;;
+    eval-v9|eval-strong-v9|eval-side-v9|eval-gt-v9)  # the same on the test split, into OUT9/final
+      eval_case "$1"
+      sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/final/$EVAL_NAME" ;;
+    logs-v9)  # the v9 runs' training logs: rate and wall time, the silhouette term and normal error
+      log_summary "$RUNS9" v9_more v9_mirror ;;
+    export-v9)  # the chosen predictor (PRED9 [v9_mirror]) as float32 and int8 (the bundled one), beside the generator file
+      for q in fp32 int8; do
+        rm -rf "$OUT9/final/models_$q"
+        local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
+        sketchmesh export "$RUNS9/${PRED9:-v9_mirror}" -o "$OUT9/final/models_$q" "${quant[@]}"
+        cp "$OUT8/models_fifth/generator.onnx" "$OUT9/final/models_$q/"
+      done ;;
+    tradeoff-v9)  # error against run time in the app's engine: the seventh pair at each precision and template level
+      # (run it alone: it times)
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v9=$OUT9/final/models_fp32" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v9:int8-predictor \
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT9/final/tradeoff" ;;
+    compare-v9)  # the app's ONNX path: the six earlier bundled pairs (from git), the seventh, retrieval and the template
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f; do
+        models_from_git "$c" "$OUT9/models_$c"
+        folders+=(--models "$OUT9/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --models "$OUT9/final/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
+        --threads 2 --out "$OUT9/final/compare" ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
       for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
@@ -744,10 +798,17 @@ EOF
       SHIP_MODELS=$OUT8/final/models_int8; SHIP_OUT=$OUT8/final; CENTRES=()
       for s in eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 gallery-v2 compare-v8 ship-v2 \
                refine-v2 docs-v2; do step "$s"; done ;;
+    fresh-v9)  # the seventh candidate (after fresh-v8 and predictor-v8-more): mirrored inputs, trained, chosen, measured
+      for s in generated-mirror-v9 predictor-v9 val-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9; do
+        step "$s"
+      done ;;
+    all-v9)  # the seventh bundled models (after fresh-v9): exported, timed, shipped
+      SHIP_MODELS=$OUT9/final/models_int8; SHIP_OUT=$OUT9/final; CENTRES=()
+      for s in export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
       exit 2 ;;
   esac
 }
