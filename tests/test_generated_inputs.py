@@ -254,6 +254,11 @@ def test_mirrored_items_read_their_exact_inputs(setup):
             ShapeViewDataset(data, "train", fields="mesh", input_normals="m_in", mirror_inputs=bad)
     with pytest.raises(DatasetError, match="needs input_normals"):
         ShapeViewDataset(data, "train", fields="mesh", mirror_inputs="m_in_flip")
+    with pytest.raises(DatasetError, match="is a mirrored set"):  # a mirrored set named as the items' own input
+        ShapeViewDataset(data, "train", fields="mesh", input_normals="m_in_flip")
+    build_generated(data, models, "m_in_part", mirror=True, max_shapes=1, progress=False)
+    with pytest.raises(DatasetError, match="lacks rows"):  # a stopped mirrored build is refused up front
+        ShapeViewDataset(data, "train", fields="mesh", input_normals="m_in", mirror_inputs="m_in_part")
     with pytest.raises(ValueError, match="mirror_inputs .* needs mirror > 0"):
         TrainConfig(mode="mesh", data_dir=str(data), input_normals="m_in", mirror_inputs="m_in_flip")
 
@@ -276,6 +281,8 @@ def test_training_with_exact_mirrored_inputs(setup, tmp_path, monkeypatch):
     g, gm = open_generated(data, "t_in"), open_generated(data, "t_in_flip")
     monkeypatch.setattr(type(gm), "rows", lambda self, rows: mirror_normal_image(
         torch.from_numpy(_stored_rows(g, rows))).numpy() if self.info["mirror"] else _stored_rows(g, rows))
+    assert exact.train_set._mirrors is not None
+    assert make_dataset(exact.cfg, "val", "mesh")._mirrors is None  # validation reads the true images
     same = Trainer(cfg.replace(out_dir=str(tmp_path / "same"), mirror_inputs="t_in_flip"), progress=False)
     same.run()
     c = same.models["predictor"].state_dict()
@@ -285,3 +292,33 @@ def test_training_with_exact_mirrored_inputs(setup, tmp_path, monkeypatch):
 def _stored_rows(g, rows):  # the unpatched rows of a generated set (the test above patches the method)
     rows = np.asarray(rows, np.int64)
     return np.ascontiguousarray(g.normals64[rows].transpose(0, 3, 1, 2), np.float32)
+
+
+def test_folders_from_before_mirrored_sets_are_unmirrored(setup):
+    """An info.json without "mirror" (built before mirrored sets existed) resumes as unmirrored and pairs as one."""
+    data, models = setup
+    build_generated(data, models, "old", max_shapes=1, progress=False)
+    info_path = generated_dir(data, "old") / "info.json"
+    info = json.loads(info_path.read_text())
+    del info["mirror"]
+    info_path.write_text(json.dumps(info))
+    assert build_generated(data, models, "old", progress=False)["written"] == 9  # resumed, not refused
+    with pytest.raises(DatasetError, match="other mirror"):
+        build_generated(data, models, "old", mirror=True, progress=False)
+    build_generated(data, models, "old_flip", mirror=True, progress=False)
+    ds = ShapeViewDataset(data, "train", fields="mesh", input_normals="old", mirror_inputs="old_flip")
+    assert "input64_mirror" in ds[0]
+
+
+def test_calibrating_an_import_ignores_the_mirrored_inputs(setup):
+    """import-models' calibration reads the inputs the predictor trained on; a run's mirrored set is not needed."""
+    from training.export.from_onnx import calibration_inputs
+
+    data, models = setup
+    build_generated(data, models, "cal_in", progress=False)
+    cfg = TrainConfig(mode="mesh", data_dir=str(data), input_normals="cal_in", mirror=0.5, mirror_inputs="absent",
+                      **TINY)
+    x, what = calibration_inputs(cfg, count=4)
+    assert x.shape == (4, 3, 64, 64) and "generated set cal_in" in what
+    rows = open_generated(data, "cal_in")
+    assert any(np.allclose(x[0].numpy(), rows.rows(np.array([r]))[0]) for r in np.nonzero(rows.done)[0])

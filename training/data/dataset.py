@@ -704,6 +704,9 @@ class ShapeViewDataset(_DatasetBase):
                 raise DatasetError(f"input_normals must name distinct sets, got {input_normals!r}")
             self._inputs = [open_generated(self.root, n) for n in names]
             for g in self._inputs:
+                if g.info.get("mirror", False):
+                    raise DatasetError(f"{g.folder} is a mirrored set (data generated --mirror): it is the input of "
+                                       "mirrored items (mirror_inputs), not of the items themselves (input_normals)")
                 if g.normals64.shape[0] != self._arrays.normals64.shape[0]:
                     raise DatasetError(f"{g.folder} has {g.normals64.shape[0]} rows, the dataset "
                                        f"{self._arrays.normals64.shape[0]}: it was built for another state of {self.root}")
@@ -733,6 +736,9 @@ class ShapeViewDataset(_DatasetBase):
                     if m.info.get(k) != g.info.get(k)]
             if diff:
                 raise DatasetError(f"{m.folder} is not the mirror of {g.folder}: they differ in {', '.join(diff)}")
+            if (g.done & ~m.done).any():
+                raise DatasetError(f"{m.folder} lacks rows that {g.folder} has (built for another split, or stopped): "
+                                   "finish it with `sketchmesh data generated ... --mirror` for the same split")
         return mirrors
 
     def __len__(self) -> int:

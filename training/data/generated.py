@@ -19,7 +19,7 @@ flipped one (the generator is not mirror-equivariant). Pair it with its unmirror
 
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
 them, so a killed build keeps what it finished. A folder made from another generator, augmentation,
-seed or dataset state is refused with a message naming the difference.
+seed, mirroring or dataset state is refused with a message naming the difference.
 """
 
 from __future__ import annotations

@@ -16,6 +16,10 @@ image's red channel, ``alpha (n_x + 1) / 2`` for a pixel covered by ``alpha``, b
 ``alpha`` their silhouette. The predictor's input may be the generator's image, whose coverage is
 not known: there ``alpha = clip(2 blue, 0, 1)``, exact at the outline (where a surface turns away,
 ``n_z = 0`` and blue is ``alpha / 2``) and 1 inside wherever the surface faces the camera.
+That flipped image only approximates what the generator makes of the flipped drawing (the generator
+is not mirror-equivariant); a run with ``mirror_inputs`` reads the generator's image of the flipped
+drawing instead (``sketchmesh data generated --mirror``, :mod:`training.data.generated`), and an
+item that reads the true image gets the true image mirrored with its silhouette as ``alpha``.
 
 Why: the predictor underfits and generalises worse than it fits (model card); mirroring doubles the
 shapes and views it sees without rendering anything, and the mirrored shape is as plausible a shape

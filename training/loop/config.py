@@ -103,7 +103,9 @@ class TrainConfig:
         mirror_inputs: with ``mirror`` and ``input_normals``: the mirrored generated sets
             (``sketchmesh data generated --mirror``), one per ``input_normals`` set, joined by
             commas; a mirrored item then reads the generator's image of its flipped drawing
-            instead of its generated image flipped (which only approximates it). "" (default): off.
+            instead of its generated image flipped (which only approximates it); with ``input_share``
+            below 1, an item that reads the true image reads it mirrored exactly (its silhouette as
+            coverage). "" (default): off.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
         edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
