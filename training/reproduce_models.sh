@@ -748,14 +748,14 @@ EOF
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       sketchmesh data generated "$DATA2" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
     predictor-v9)  # two candidates for the seventh predictor at equal wall time, side by side on one thread each,
-      # from the sixth (v8_more2) with its loss, Adam 2e-4 cosine over V9_ITERS [12500] (V9_MINUTES [65] at most;
+      # from the sixth (v8_more2) with its loss, Adam 2e-4 cosine over V9_ITERS [15000] (V9_MINUTES [80] at most;
       # resumes): trained on as it is (v9_more) and with half of every batch mirrored, a mirrored item reading the
       # generator's image of its flipped drawing (v9_mirror, --mirror 0.5 --mirror-inputs normals16_mirror)
       [ -f "$RUNS8/v8_more2/config.json" ] || { echo "predictor-v9 starts from $RUNS8/v8_more2: run fresh-v8 and predictor-v8-more first" >&2; exit 1; }
       [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
       local v9=(--data "$DATA2" --init-mesh "$RUNS8/v8_more2" --lambda-n 0.002 --lr-mesh 2e-4
-        --iters "${V9_ITERS:-12500}" --threads 1 --ckpt-every 250 --val-every 0 --quiet
-        --max-minutes "${V9_MINUTES:-65}" --input-normals normals16 --no-normal-edges)
+        --iters "${V9_ITERS:-15000}" --threads 1 --ckpt-every 250 --val-every 0 --quiet
+        --max-minutes "${V9_MINUTES:-80}" --input-normals normals16 --no-normal-edges)
       sketchmesh train mesh "${v9[@]}" --out "$RUNS9/v9_more" &
       sketchmesh train mesh "${v9[@]}" --mirror 0.5 --mirror-inputs normals16_mirror --out "$RUNS9/v9_mirror" &
       wait ;;
