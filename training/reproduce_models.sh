@@ -32,7 +32,7 @@
 #   generator's images of the mirrored drawings (generated-mirror-v9), the sixth predictor (v8_more2) trained on as
 #   it is and with half of every batch mirrored from those exact inputs at equal time (predictor-v9), chosen on the
 #   validation split (val-v9), measured (eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9); all-v9 then exports,
-#   times and ships it (export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2, into OUT9/final).
+#   times and ships it (float32 predictor) (export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2, into OUT9/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -776,7 +776,8 @@ EOF
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/final/$EVAL_NAME" ;;
     logs-v9)  # the v9 runs' training logs: rate and wall time, the silhouette term and normal error
       log_summary "$RUNS9" v9_more v9_mirror ;;
-    export-v9)  # the chosen predictor (PRED9 [v9_mirror]) as float32 and int8 (the bundled one), beside the generator file
+    export-v9)  # the chosen predictor (PRED9 [v9_mirror]) as float32 (the bundled one: int8 costs it 0.002 for no speed,
+      # tradeoff-v9) and int8, beside the generator file
       for q in fp32 int8; do
         rm -rf "$OUT9/final/models_$q"
         local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
@@ -786,7 +787,7 @@ EOF
     tradeoff-v9)  # error against run time in the app's engine: the seventh pair at each precision and template level
       # (run it alone: it times)
       sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v9=$OUT9/final/models_fp32" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v9:int8-predictor \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v9:fp32 \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT9/final/tradeoff" ;;
     compare-v9)  # the app's ONNX path: the six earlier bundled pairs (from git), the seventh, retrieval and the template
       local folders=()
@@ -794,7 +795,7 @@ EOF
         models_from_git "$c" "$OUT9/models_$c"
         folders+=(--models "$OUT9/models_$c")
       done
-      sketchmesh eval "${folders[@]}" --models "$OUT9/final/models_int8" --data "$DATA2" --views 4 --max-samples 39 \
+      sketchmesh eval "${folders[@]}" --models "$OUT9/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
         --threads 2 --out "$OUT9/final/compare" ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
@@ -809,7 +810,7 @@ EOF
         step "$s"
       done ;;
     all-v9)  # the seventh bundled models (after fresh-v9): exported, timed, shipped
-      SHIP_MODELS=$OUT9/final/models_int8; SHIP_OUT=$OUT9/final; CENTRES=()
+      SHIP_MODELS=$OUT9/final/models_fp32; SHIP_OUT=$OUT9/final; CENTRES=()
       for s in export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
