@@ -105,6 +105,15 @@ eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, stron
   esac
 }
 
+export_pair() {  # training run $1 exported as float32 and int8 into $2/models_fp32 and $2/models_int8, beside generator file $3
+  for q in fp32 int8; do
+    rm -rf "$2/models_$q"
+    local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
+    sketchmesh export "$1" -o "$2/models_$q" "${quant[@]}"
+    cp "$3" "$2/models_$q/"
+  done
+}
+
 models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder $2
   mkdir -p "$2"
   for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
@@ -512,12 +521,7 @@ EOF
         --baseline-run "$RUNS8/v8_more" --baseline-run "$RUNS8/fifth/predictor" --no-retrieval "${EVAL_EXTRA[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT8/final/$EVAL_NAME" ;;
     export-v8)  # the chosen predictor as float32 and int8 (the bundled one), each beside the fifth pair's generator file
-      for q in fp32 int8; do
-        rm -rf "$OUT8/final/models_$q"
-        local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
-        sketchmesh export "$RUNS8/${PRED8:-v8_more2}" -o "$OUT8/final/models_$q" "${quant[@]}"
-        cp "$OUT8/models_fifth/generator.onnx" "$OUT8/final/models_$q/"
-      done ;;
+      export_pair "$RUNS8/${PRED8:-v8_more2}" "$OUT8/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v8)  # error against run time in the app's engine: the sixth pair at each precision and template level
       # (run it alone: it times)
       sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v8=$OUT8/final/models_fp32" \
@@ -778,12 +782,7 @@ EOF
       log_summary "$RUNS9" v9_more v9_mirror ;;
     export-v9)  # the chosen predictor (PRED9 [v9_mirror]) as float32 (the bundled one: int8 costs it 0.002 for no speed,
       # tradeoff-v9) and int8, beside the generator file
-      for q in fp32 int8; do
-        rm -rf "$OUT9/final/models_$q"
-        local quant=(); [ "$q" = int8 ] && quant=(--quantize int8)
-        sketchmesh export "$RUNS9/${PRED9:-v9_mirror}" -o "$OUT9/final/models_$q" "${quant[@]}"
-        cp "$OUT8/models_fifth/generator.onnx" "$OUT9/final/models_$q/"
-      done ;;
+      export_pair "$RUNS9/${PRED9:-v9_mirror}" "$OUT9/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v9)  # error against run time in the app's engine: the seventh pair at each precision and template level
       # (run it alone: it times)
       sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v9=$OUT9/final/models_fp32" \
