@@ -778,6 +778,18 @@ EOF
       sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
         --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval "${EVAL_EXTRA[@]}" \
         --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/final/$EVAL_NAME" ;;
+    control-v9)  # the seventh predictor's silhouette-only control: v9_mirror's run (the same start, mirrored items,
+      # schedule and 15,000 iterations) with the normal weight 0, alone on two threads (V9C_MINUTES [80] at most; resumes)
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS8/v8_more2" --lambda-n 0 --lr-mesh 2e-4 \
+        --iters "${V9_ITERS:-15000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V9C_MINUTES:-80}" --input-normals normals16 --no-normal-edges --mirror 0.5 \
+        --mirror-inputs normals16_mirror --out "$RUNS9/v9_silhouette" ;;
+    eval-control-v9|eval-control-strong-v9|eval-control-side-v9|eval-control-gt-v9)  # full minus silhouette-only:
+      # v9_mirror against control-v9 on the test split
+      eval_case "${1/control-/}"
+      sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS9/v9_silhouette" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" \
+        --threads 2 --out "$OUT9/control_$EVAL_NAME" ;;
     logs-v9)  # the v9 runs' training logs: rate and wall time, the silhouette term and normal error
       log_summary "$RUNS9" v9_more v9_mirror ;;
     export-v9)  # the chosen predictor (PRED9 [v9_mirror]) as float32 (the bundled one: int8 costs it 0.002 for no speed,
@@ -808,13 +820,14 @@ EOF
       for s in generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9; do
         step "$s"
       done ;;
-    all-v9)  # the seventh bundled models (after fresh-v9): exported, timed, shipped
+    all-v9)  # the seventh bundled models (after fresh-v9): exported, timed, shipped; then its silhouette-only control
       SHIP_MODELS=$OUT9/final/models_fp32; SHIP_OUT=$OUT9/final; CENTRES=()
-      for s in export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+      for s in export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2; do step "$s"; done
+      for s in control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
       exit 2 ;;
   esac
 }
