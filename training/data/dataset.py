@@ -834,10 +834,12 @@ class ShapeViewDataset(_DatasetBase):
         if pick.all() and len(sets_used) == 1:  # the default (one set, input_share 1): no true image is read
             return sets_used[0].rows(rows)
         out = np.ascontiguousarray(self._arrays.normals64[rows].transpose(0, 3, 1, 2), np.float32)
-        if mirrored:  # the true images' exact mirrors (training.data.mirror): red = silhouette - red, flipped
-            sil = self._arrays.silhouette64[rows].astype(np.float32)
-            out[:, 0] = np.clip(sil - out[:, 0], 0.0, 1.0)
-            out = np.ascontiguousarray(out[..., ::-1])
+        if mirrored:  # the true images' exact mirrors, their silhouettes as coverage
+            from training.data.mirror import mirror_normal_image
+
+            torch = _torch()
+            sil = torch.from_numpy(self._arrays.silhouette64[rows].astype(np.float32))
+            out = np.ascontiguousarray(mirror_normal_image(torch.from_numpy(out), sil).numpy())
         for k, g in enumerate(sets_used):
             sel = pick & (sets == k)
             if sel.any():
