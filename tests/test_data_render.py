@@ -285,3 +285,23 @@ def test_stored_views_agree_with_the_rasterizer_after_the_round_trip(tmp_path):
         d = lines.extract_lines(lines.prepare_mesh(mesh), cam, 96, big["depth"], big["face_index"])
         expected = np.round(lines.rasterize_polylines(d.polylines, 96) * 255) / 255
         assert np.abs(item["sketch"].numpy()[0] - expected).max() <= 1.0 / 255 + 1e-6
+
+
+def test_predictor_fields_do_not_depend_on_the_sketch_size(tmp_path):
+    """``data --size 64`` (training/gpu_predictor.sh) stores the same predictor targets, cameras and
+    shape as the full build: they are framed and rendered independently of the sketch size."""
+    import numpy.testing as npt
+
+    from training.data.dataset import BuildSettings, Job, build_dataset
+
+    job = Job("lamp", "lamp_00001", "train", "procedural", index=1)
+    stored = {}
+    for size in (96, 32):
+        settings = BuildSettings(size=size, small_size=32, num_azimuths=3, elevations=(0.0, 45.0))
+        build_dataset(tmp_path / str(size), [job], settings, progress=False)
+        stored[size] = np.load(tmp_path / str(size) / "shapes" / "lamp" / "lamp_00001.npz")
+    big, small = stored[96], stored[32]
+    assert big["sketch"].shape[1:] == (96, 96) and small["sketch"].shape[1:] == (32, 32)
+    for key in ("normals64", "silhouette64", "cameras", "azimuths", "elevations", "vertices", "faces"):
+        npt.assert_array_equal(small[key], big[key], err_msg=key)
+    assert big["silhouette64"].any() and not big["silhouette64"].all()

@@ -81,6 +81,8 @@ RUNS8=${RUNS8:-runs/v8}
 OUT8=${OUT8:-out/v8}
 RUNS9=${RUNS9:-runs/v9}
 OUT9=${OUT9:-out/v9}
+RUNS10=${RUNS10:-runs/v10}
+OUT10=${OUT10:-out/v10}
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
 # centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
@@ -763,6 +765,22 @@ EOF
       sketchmesh train mesh "${v9[@]}" --out "$RUNS9/v9_more" &
       sketchmesh train mesh "${v9[@]}" --mirror 0.5 --mirror-inputs normals16_mirror --out "$RUNS9/v9_mirror" &
       wait ;;
+    fetch-gpu-v10)  # what training/gpu_predictor.sh brought back (GPU_FILES: the folder the device tool copied
+      # $OUT to; both calls' .pt files and logs.tgz in one folder) becomes run folders RUNS10/NAME
+      RUNS2=$RUNS10 step fetch-gpu ;;
+    predictor-v10)  # two candidates for the eighth predictor at equal CPU wall time, side by side on one thread each,
+      # with the seventh's recipe (Adam 2e-4 cosine over V10_ITERS [12000], V10_MINUTES [60] at most; resumes):
+      # from the GPU-continued seventh (v10_gpu: RUNS10/g10_b512b, fetch-gpu-v10) and from the seventh as shipped
+      # (v10_cpu: RUNS9/v9_mirror), both on the generator's images with exact mirrored inputs
+      [ -f "$RUNS10/g10_b512b/config.json" ] || { echo "predictor-v10 starts from $RUNS10/g10_b512b: run training/gpu_predictor.sh on a GPU, then fetch-gpu-v10" >&2; exit 1; }
+      [ -f "$RUNS9/v9_mirror/config.json" ] || { echo "predictor-v10 compares against $RUNS9/v9_mirror: run fresh-v9 first" >&2; exit 1; }
+      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
+      local v10=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "${V10_ITERS:-12000}" --threads 1
+        --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V10_MINUTES:-60}" --input-normals normals16
+        --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
+      sketchmesh train mesh "${v10[@]}" --init-mesh "$RUNS10/g10_b512b" --out "$RUNS10/v10_gpu" &
+      sketchmesh train mesh "${v10[@]}" --init-mesh "$RUNS9/v9_mirror" --out "$RUNS10/v10_cpu" &
+      wait ;;
     val-v9)  # predictor-v9's two runs against the sixth predictor on the validation split, clean sketches
       sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
         --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval \
@@ -827,7 +845,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 fetch-gpu-v10 predictor-v10 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
       exit 2 ;;
   esac
 }
