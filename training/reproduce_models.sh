@@ -33,6 +33,12 @@
 #   it is and with half of every batch mirrored from those exact inputs at equal time (predictor-v9), chosen on the
 #   validation split (val-v9), measured (eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9); all-v9 then exports,
 #   times and ships it (float32 predictor) (export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2, into OUT9/final).
+# The eighth candidate (fresh-v10 after fresh-v9, into RUNS10 [runs/v10] and OUT10 [out/v10]): the seventh predictor
+#   continued on a lent GPU at batch 512 on true normal images (training/gpu_predictor.sh; fetch-gpu-v10, checked on
+#   the validation split's true normal images by val-gpu-v10), then fine-tuned here on the generator's images against
+#   the seventh fine-tuned as long without the GPU stage (predictor-v10), chosen on the validation split (val-*-v10),
+#   measured (eval-*-v10 logs-v10); all-v10 exports, times and ships it (export-v10 tradeoff-v10 gallery-v2
+#   compare-v10 ship-v2 refine-v2 docs-v2, into OUT10/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -826,6 +832,37 @@ EOF
       done
       sketchmesh eval "${folders[@]}" --models "$OUT9/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
         --threads 2 --out "$OUT9/final/compare" ;;
+    val-gpu-v10)  # the GPU stage on the validation split's true normal images: its end (g10_b512b) and the first call's
+      # run (g10_b512) against the seventh predictor it started from
+      sketchmesh eval "$RUNS10/g10_b512b" --data "$DATA2" --split val --gt-normals --baseline-run "$RUNS9/v9_mirror" \
+        --baseline-run "$RUNS10/g10_b512" --no-retrieval --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/val_gt_gpu" ;;
+    val-v10|val-strong-v10|val-side-v10|val-gt-v10)  # predictor-v10's two runs against the seventh, validation split
+      local c=${1/val-/eval-}; eval_case "$c"
+      sketchmesh eval "$RUNS10/v10_gpu" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS10/v10_cpu" --baseline-run "$RUNS9/v9_mirror" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/val_${EVAL_NAME#eval_}" ;;
+    eval-v10|eval-strong-v10|eval-side-v10|eval-gt-v10)  # the same on the test split, into OUT10/final
+      eval_case "$1"
+      sketchmesh eval "$RUNS10/v10_gpu" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS10/v10_cpu" --baseline-run "$RUNS9/v9_mirror" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/final/$EVAL_NAME" ;;
+    logs-v10)  # the v10 runs' training logs: rate and wall time, the silhouette term and normal error
+      log_summary "$RUNS10" v10_gpu v10_cpu ;;
+    export-v10)  # the chosen predictor (PRED10 [v10_gpu]) as float32 and int8, beside the generator file
+      export_pair "$RUNS10/${PRED10:-v10_gpu}" "$OUT10/final" "$OUT8/models_fifth/generator.onnx" ;;
+    tradeoff-v10)  # error against run time in the app's engine: the eighth pair at each precision and template level
+      # (run it alone: it times)
+      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v10=$OUT10/final/models_fp32" \
+        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v10:fp32 \
+        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT10/final/tradeoff" ;;
+    compare-v10)  # the app's ONNX path: the seven earlier bundled pairs (from git), the eighth, retrieval and the template
+      local folders=()
+      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c; do
+        models_from_git "$c" "$OUT10/models_$c"
+        folders+=(--models "$OUT10/models_$c")
+      done
+      sketchmesh eval "${folders[@]}" --models "$OUT10/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
+        --threads 2 --out "$OUT10/final/compare" ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
       for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
@@ -842,10 +879,16 @@ EOF
       SHIP_MODELS=$OUT9/final/models_fp32; SHIP_OUT=$OUT9/final; CENTRES=()
       for s in export-v9 tradeoff-v9 gallery-v2 compare-v9 ship-v2 refine-v2 docs-v2; do step "$s"; done
       for s in control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9; do step "$s"; done ;;
+    fresh-v10)  # the eighth candidate (after fresh-v9, with what gpu_predictor.sh brought back in GPU_FILES)
+      for s in fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 \
+               eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10; do step "$s"; done ;;
+    all-v10)  # the eighth bundled models (after fresh-v10): exported, timed, shipped
+      SHIP_MODELS=$OUT10/final/models_fp32; SHIP_OUT=$OUT10/final; CENTRES=()
+      for s in export-v10 tradeoff-v10 gallery-v2 compare-v10 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 fetch-gpu-v10 predictor-v10 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v1)" >&2
       exit 2 ;;
   esac
 }
