@@ -547,3 +547,23 @@ def test_render_views_passes_normal_edges_to_the_rasterizer():
         if edges:
             g_edges = g
     assert (g_edges - g).abs().max() > 1e-3  # the two settings differ
+
+
+def test_slim_copy_keeps_the_models_and_drops_the_optimiser(tmp_path):
+    from training.loop.checkpoint import save_slim_copy
+
+    model, opt = _tiny_state()
+    assert save_slim_copy(tmp_path / "run", tmp_path / "none.pt") is None and not (tmp_path / "none.pt").exists()
+    for it in (4, 7):
+        save_checkpoint(tmp_path / "run", it, TrainConfig().to_json(), "v", {"m": model}, {"m": opt})
+    assert save_slim_copy(tmp_path / "run", tmp_path / "slim.pt") == 7
+    slim = torch.load(tmp_path / "slim.pt", weights_only=True)
+    full = load_latest_checkpoint(tmp_path / "run")
+    assert slim["optimizers"] == {} and "rng" not in slim and "path" not in slim
+    assert slim["iteration"] == 7 and slim["config"] == full["config"]
+    assert all(torch.equal(slim["models"]["m"][k], v) for k, v in model.state_dict().items())
+    placed = tmp_path / "placed" / "checkpoints"  # fetch-gpu's layout: loadable as a run
+    placed.mkdir(parents=True)
+    (placed / "ckpt_00000007.pt").write_bytes((tmp_path / "slim.pt").read_bytes())
+    assert load_latest_checkpoint(tmp_path / "placed")["iteration"] == 7
+    assert (tmp_path / "slim.pt").stat().st_size < checkpoint_paths(tmp_path / "run")[0].stat().st_size

@@ -48,22 +48,9 @@ run_args() {  # the training command of one run (the v2 recipes; GPU, data loade
 
 snapshot() {  # slim copies of the newest checkpoints (no optimiser state) and the logs, into $OUT
   [ -n "${OUT:-}" ] || return 0
-  python3 - "$RUNS" "$OUT" "${NAMES[@]}" <<'EOF'
-import sys, torch
-from pathlib import Path
-from training.loop.checkpoint import load_latest_checkpoint
-runs, out, names = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3:]
-for n in names:
-    try:
-        s = load_latest_checkpoint(runs / n)
-    except Exception as exc:
-        print(f"{n}: {exc}"); continue
-    if s is None:
-        print(f"{n}: no checkpoint yet"); continue
-    s.pop("path", None); s["optimizers"] = {}; s.pop("rng", None)
-    torch.save(s, out / f"{n}.pt")
-    print(f"{n}: iteration {s['iteration']} -> {n}.pt")
-EOF
+  for n in "${NAMES[@]}"; do  # the newest checkpoint of each run without optimiser state
+    python3 -c "from training.loop.checkpoint import save_slim_copy as c; print('$n: iteration', c('$RUNS/$n', '$OUT/$n.pt'))"
+  done
   tar czf "$OUT/logs.tgz" --exclude='checkpoints' --exclude='val' "$RUNS" 2>/dev/null
   ls -la "$OUT"
 }

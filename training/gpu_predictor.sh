@@ -87,6 +87,7 @@ fi
 LEFT=$((END - $(elapsed) - 25))  # 25 s: start-up of the runs and the last checkpoint
 [ "$LEFT" -gt 30 ] || { echo "no time left to train ($LEFT s)"; exit 1; }
 mkdir -p "$RUNS"
+PIDS=()
 echo "== launch $(elapsed) s, $LEFT s to train"
 for s in "${RUNSPECS[@]}"; do
   read -r n b lr <<< "$s"
@@ -102,23 +103,15 @@ a = sorted(r)[len(r) // 3]; z = max(r); print((z - a) / (r[z] - r[a]))") || { ta
   # shellcheck disable=SC2046
   setsid nohup "${SM[@]}" $(train_args "$n" "$b" "$lr") --out "$RUNS/$n" --iters "$iters" --lr-warmup "$WARMUP" --log-every 20 \
     --ckpt-every 200 --max-minutes "$(python3 -c "print(round($LEFT / 60, 2))")" > "$RUNS/$n.out" 2>&1 < /dev/null &
+  PIDS+=($!)
 done
-while pgrep -f "sketchmesh train.*--out $RUNS/" > /dev/null && [ "$(elapsed)" -lt "$END" ]; do sleep 5; done
+running() { for p in "${PIDS[@]}"; do kill -0 "$p" 2> /dev/null && return 0; done; return 1; }
+while running && [ "$(elapsed)" -lt "$END" ]; do sleep 2; done
 for n in "${NAMES[@]}"; do printf '%-10s ' "$n"; tail -n 1 "$RUNS/$n/log.csv" | cut -c1-160; tail -n 2 "$RUNS/$n.out"; done
 [ "$DEVICE" != cuda ] || nvidia-smi --query-gpu=utilization.gpu,memory.used --format=csv,noheader
 [ -n "${OUT:-}" ] || exit 0
-python3 - "$RUNS" "$OUT" "${NAMES[@]}" <<'EOF'
-import sys, torch
-from pathlib import Path
-from training.loop.checkpoint import load_latest_checkpoint
-runs, out, names = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3:]
-for n in names:
-    s = load_latest_checkpoint(runs / n)
-    if s is None:
-        print(f"{n}: no checkpoint"); continue
-    s.pop("path", None); s["optimizers"] = {}; s.pop("rng", None)
-    torch.save(s, out / f"{n}.pt")
-    print(f"{n}: iteration {s['iteration']} -> {n}.pt")
-EOF
+for n in "${NAMES[@]}"; do  # the newest checkpoint of each run without optimiser state
+  python3 -c "from training.loop.checkpoint import save_slim_copy as c; print('$n: iteration', c('$RUNS/$n', '$OUT/$n.pt'))"
+done
 tar czf "$OUT/logs.tgz" --exclude='checkpoints' "$RUNS" 2>/dev/null  # RUNS/NAME/...: fetch-gpu's layout
 ls -la "$OUT"; echo "done at $(elapsed) s"

@@ -183,3 +183,18 @@ def require_checkpoint(run_dir: str | Path, map_location: str | torch.device = "
     if state is None:
         raise ModelError(f"run folder {run} has no checkpoint (expected {run / CHECKPOINT_DIR}/ckpt_*.pt)")
     return state
+
+
+def save_slim_copy(run_dir: str | Path, dest: str | Path) -> int | None:
+    """Write ``run_dir``'s newest checkpoint to file ``dest`` without optimiser and RNG state (what a lent GPU
+    machine sends back: a third of the size; ``sketchmesh export`` / ``eval`` and ``--init-mesh`` need only the
+    models). Atomic. Returns its iteration, or None when the run has no checkpoint yet."""
+    state = load_latest_checkpoint(run_dir)
+    if state is None:
+        return None
+    state.pop("path", None)
+    state.pop("rng", None)
+    state["optimizers"] = {}
+    with atomic_open(dest, "wb") as fh:
+        torch.save(state, fh)
+    return int(state["iteration"])
