@@ -127,6 +127,17 @@ models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder
   for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
 }
 
+compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from git) and $1/final/models_fp32 through the
+  # app's ONNX path on 39 test shapes x 4 drawings, with retrieval and the template sphere, into $1/final/compare
+  local out=$1 folders=() c; shift
+  for c in "$@"; do
+    models_from_git "$c" "$out/models_$c"
+    folders+=(--models "$out/models_$c")
+  done
+  sketchmesh eval "${folders[@]}" --models "$out/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
+    --threads 2 --out "$out/final/compare"
+}
+
 log_summary() {  # $1: runs folder, then run names: iterations, wall time, median rate, and the silhouette term and
   # normal error over the first 100 and the last 1,000 iterations of each run's log.csv (runs without one are skipped)
   python3 - "$@" <<'EOF'
@@ -825,13 +836,7 @@ EOF
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v9:fp32 \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT9/final/tradeoff" ;;
     compare-v9)  # the app's ONNX path: the six earlier bundled pairs (from git), the seventh, retrieval and the template
-      local folders=()
-      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f; do
-        models_from_git "$c" "$OUT9/models_$c"
-        folders+=(--models "$OUT9/models_$c")
-      done
-      sketchmesh eval "${folders[@]}" --models "$OUT9/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
-        --threads 2 --out "$OUT9/final/compare" ;;
+      compare_pairs "$OUT9" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f ;;
     val-gpu-v10)  # the GPU stage on the validation split's true normal images: its end (g10_b512b) and the first call's
       # run (g10_b512) against the seventh predictor it started from
       sketchmesh eval "$RUNS10/g10_b512b" --data "$DATA2" --split val --gt-normals --baseline-run "$RUNS9/v9_mirror" \
@@ -856,13 +861,7 @@ EOF
         --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v10:fp32 \
         --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT10/final/tradeoff" ;;
     compare-v10)  # the app's ONNX path: the seven earlier bundled pairs (from git), the eighth, retrieval and the template
-      local folders=()
-      for c in 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c; do
-        models_from_git "$c" "$OUT10/models_$c"
-        folders+=(--models "$OUT10/models_$c")
-      done
-      sketchmesh eval "${folders[@]}" --models "$OUT10/final/models_fp32" --data "$DATA2" --views 4 --max-samples 39 \
-        --threads 2 --out "$OUT10/final/compare" ;;
+      compare_pairs "$OUT10" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
       for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
