@@ -127,6 +127,20 @@ models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder
   for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
 }
 
+eval_against() {  # $1 split, $2 out folder, $3 run, then baseline runs: the case of eval_case's EVAL_EXTRA from the
+  # fifth generator's images (SAMPLES2 sketches, no retrieval)
+  local split=$1 out=$2 run=$3 bases=() b; shift 3
+  for b in "$@"; do bases+=(--baseline-run "$b"); done
+  sketchmesh eval "$run" --data "$DATA2" --split "$split" --generator-run "$RUNS8/fifth/generator" "${bases[@]}" \
+    --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 --out "$out"
+}
+
+tradeoff_of() {  # $1 a name, $2 a folder holding models_fp32: error against run time in the app's engine at each
+  # precision and template level, the float32 pair marked as bundled, into $2/tradeoff (run it alone: it times)
+  sketchmesh bench tradeoff --data "$DATA2" --variant "$1=$2/models_fp32" --precisions fp32 int8-predictor int8 \
+    --levels 2 3 4 --bundled "$1:fp32" --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$2/tradeoff"
+}
+
 compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from git) and $1/final/models_fp32 through the
   # app's ONNX path on 39 test shapes x 4 drawings, with retrieval and the template sphere, into $1/final/compare
   local out=$1 folders=() c; shift
@@ -805,14 +819,10 @@ EOF
     val-strong-v9|val-side-v9|val-gt-v9)  # the tie on clean validation sketches (0.5202 against 0.5208) broken on
       # the validation split's other cases: strong augmentation, side views, ground-truth normal images
       local c=${1/val-/eval-}; eval_case "$c"
-      sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval "${EVAL_EXTRA[@]}" \
-        --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/val_${EVAL_NAME#eval_}" ;;
+      eval_against val "$OUT9/val_${EVAL_NAME#eval_}" "$RUNS9/v9_mirror" "$RUNS9/v9_more" "$RUNS8/v8_more2" ;;
     eval-v9|eval-strong-v9|eval-side-v9|eval-gt-v9)  # the same on the test split, into OUT9/final
       eval_case "$1"
-      sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval "${EVAL_EXTRA[@]}" \
-        --max-samples "$SAMPLES2" --threads 2 --out "$OUT9/final/$EVAL_NAME" ;;
+      eval_against test "$OUT9/final/$EVAL_NAME" "$RUNS9/v9_mirror" "$RUNS9/v9_more" "$RUNS8/v8_more2" ;;
     control-v9)  # the seventh predictor's silhouette-only control: v9_mirror's run (the same start, mirrored items,
       # schedule and 15,000 iterations) with the normal weight 0, alone on two threads (V9C_MINUTES [80] at most; resumes)
       sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS8/v8_more2" --lambda-n 0 --lr-mesh 2e-4 \
@@ -832,9 +842,7 @@ EOF
       export_pair "$RUNS9/${PRED9:-v9_mirror}" "$OUT9/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v9)  # error against run time in the app's engine: the seventh pair at each precision and template level
       # (run it alone: it times)
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v9=$OUT9/final/models_fp32" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v9:fp32 \
-        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT9/final/tradeoff" ;;
+      tradeoff_of "w16-v9" "$OUT9/final" ;;
     compare-v9)  # the app's ONNX path: the six earlier bundled pairs (from git), the seventh, retrieval and the template
       compare_pairs "$OUT9" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f ;;
     val-gpu-v10)  # the GPU stage on the validation split's true normal images: its end (g10_b512b) and the first call's
@@ -843,23 +851,17 @@ EOF
         --baseline-run "$RUNS10/g10_b512" --no-retrieval --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/val_gt_gpu" ;;
     val-v10|val-strong-v10|val-side-v10|val-gt-v10)  # predictor-v10's two runs against the seventh, validation split
       local c=${1/val-/eval-}; eval_case "$c"
-      sketchmesh eval "$RUNS10/v10_gpu" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS10/v10_cpu" --baseline-run "$RUNS9/v9_mirror" --no-retrieval "${EVAL_EXTRA[@]}" \
-        --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/val_${EVAL_NAME#eval_}" ;;
+      eval_against val "$OUT10/val_${EVAL_NAME#eval_}" "$RUNS10/v10_gpu" "$RUNS10/v10_cpu" "$RUNS9/v9_mirror" ;;
     eval-v10|eval-strong-v10|eval-side-v10|eval-gt-v10)  # the same on the test split, into OUT10/final
       eval_case "$1"
-      sketchmesh eval "$RUNS10/v10_gpu" --data "$DATA2" --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS10/v10_cpu" --baseline-run "$RUNS9/v9_mirror" --no-retrieval "${EVAL_EXTRA[@]}" \
-        --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/final/$EVAL_NAME" ;;
+      eval_against test "$OUT10/final/$EVAL_NAME" "$RUNS10/v10_gpu" "$RUNS10/v10_cpu" "$RUNS9/v9_mirror" ;;
     logs-v10)  # the v10 runs' training logs: rate and wall time, the silhouette term and normal error
       log_summary "$RUNS10" v10_gpu v10_cpu ;;
     export-v10)  # the chosen predictor (PRED10 [v10_gpu]) as float32 and int8, beside the generator file
       export_pair "$RUNS10/${PRED10:-v10_gpu}" "$OUT10/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v10)  # error against run time in the app's engine: the eighth pair at each precision and template level
       # (run it alone: it times)
-      sketchmesh bench tradeoff --data "$DATA2" --variant "w16-v10=$OUT10/final/models_fp32" \
-        --precisions fp32 int8-predictor int8 --levels 2 3 4 --bundled w16-v10:fp32 \
-        --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT10/final/tradeoff" ;;
+      tradeoff_of "w16-v10" "$OUT10/final" ;;
     compare-v10)  # the app's ONNX path: the seven earlier bundled pairs (from git), the eighth, retrieval and the template
       compare_pairs "$OUT10" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
