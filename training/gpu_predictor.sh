@@ -23,11 +23,11 @@
 #
 # The eighth predictor's GPU stage (issue 16, 2026-11-26, H200) was two calls from the seventh (a slim
 # copy of runs/v9/v9_mirror in gpucarry/v9_mirror):
-#   SPECS="g10_b128 128 4e-4;g10_b512 512 8e-4" bash training/gpu_predictor.sh gpucarry/v9_mirror
+#   SPECS="g10_b128 128 4e-4;g10_b512 512 8e-4" WORKERS=0 bash training/gpu_predictor.sh gpucarry/v9_mirror
 #     (then without the thread split: the two processes took 16 threads each and ran at 0.4 it/s
 #     side by side against 3.3 alone, so g10_b512 stopped at 189 of its 889 iterations)
-#   SPECS="g10_b512b 512 6e-4" CAL=0 ITERS=520 WARMUP=20 END=190 bash training/gpu_predictor.sh runs/gpu10/g10_b512
-#     (520 iterations in 156 s alone: 3.4 it/s, 1,770 samples/s against about 110 on this project's 2-core CPU)
+#   SPECS="g10_b512b 512 6e-4" CAL=0 ITERS=520 WARMUP=20 END=190 WORKERS=0 bash training/gpu_predictor.sh runs/gpu10/g10_b512
+#     (typed as the train command this script runs; 520 iterations in 156 s alone: 3.4 it/s, 1,770 samples/s against about 110 on this project's 2-core CPU)
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN}
@@ -49,9 +49,13 @@ THREADS=$(( $(nproc) / ${#NAMES[@]} > 0 ? $(nproc) / ${#NAMES[@]} : 1 ))
 [ "$CAL" -gt 0 ] || [ "$ITERS" -gt 0 ] || { echo "CAL=0 needs ITERS" >&2; exit 2; }
 elapsed() { echo $(($(date +%s) - T0)); }
 
+# Loader processes per run (WORKERS [4]): the 2026-11-26 calls ran with none, and gathering plus collating a batch of
+# 512 views and their 1,536 extra views costs 0.2 to 0.8 s on this project's 2-core CPU, in series with the GPU's step
+# there; with workers it overlaps the step (not yet measured on a GPU).
+WORKERS=${WORKERS:-4}
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe, true normal images)
   echo train mesh --data "$DATA" --device "$DEVICE" --quiet --init-mesh "$INIT" --batch "$2" --lr-mesh "$3" \
-    --mirror 0.5 --num-workers 0 --val-every 0 --plot-every 0 --threads "$THREADS"
+    --mirror 0.5 --num-workers "$WORKERS" --val-every 0 --plot-every 0 --threads "$THREADS"
 }
 
 if [ "$DEVICE" = cuda ]; then
