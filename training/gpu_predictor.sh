@@ -10,7 +10,7 @@
 #
 #   bash training/gpu_predictor.sh INIT_RUN       on the GPU machine: INIT_RUN holds the predictor to
 #                                                 continue (a slim copy travels in gpucarry/, which
-#                                                 .git/info/exclude ignores; carry it and .whl)
+#                                                 .gitignore ignores; carry it and .whl)
 #   DEVICE=cpu SHAPES=2 CAL=8 END=150 bash training/gpu_predictor.sh INIT_RUN    a dry run on any machine
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
