@@ -857,10 +857,16 @@ EOF
         --mirror-inputs normals16_mirror --out "$RUNS10/v10_more" ;;
     val-v10-more|val-strong-v10-more|val-side-v10-more|val-gt-v10-more)  # v10_more against v10_gpu, validation split
       local c=${1/val-/eval-}; eval_case "${c%-more}"
-      eval_against val "$OUT10/more_val_${EVAL_NAME#eval_}" "$RUNS10/v10_more" "$RUNS10/v10_gpu" ;;
-    eval-v10-more|eval-strong-v10-more|eval-side-v10-more|eval-gt-v10-more)  # the same on the test split
+      eval_against val "$OUT10/more/val_${EVAL_NAME#eval_}" "$RUNS10/v10_more" "$RUNS10/v10_gpu" ;;
+    eval-v10-more|eval-strong-v10-more|eval-side-v10-more|eval-gt-v10-more)  # the same on the test split, into OUT10/more/final
       eval_case "${1%-more}"
-      eval_against test "$OUT10/more_$EVAL_NAME" "$RUNS10/v10_more" "$RUNS10/v10_gpu" ;;
+      eval_against test "$OUT10/more/final/$EVAL_NAME" "$RUNS10/v10_more" "$RUNS10/v10_gpu" ;;
+    export-v10-more)  # v10_more as float32 and int8, beside the generator file
+      export_pair "$RUNS10/v10_more" "$OUT10/more/final" "$OUT8/models_fifth/generator.onnx" ;;
+    tradeoff-v10-more)  # error against run time in the app's engine (run it alone: it times)
+      tradeoff_of "w16-v10-more" "$OUT10/more/final" ;;
+    compare-v10-more)  # the app's ONNX path: the eight bundled pairs so far (from git), v10_more, retrieval, the template
+      compare_pairs "$OUT10/more" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c ;;
     val-v10|val-strong-v10|val-side-v10|val-gt-v10)  # predictor-v10's two runs against the seventh, validation split
       local c=${1/val-/eval-}; eval_case "$c"
       eval_against val "$OUT10/val_${EVAL_NAME#eval_}" "$RUNS10/v10_gpu" "$RUNS10/v10_cpu" "$RUNS9/v9_mirror" ;;
@@ -898,10 +904,15 @@ EOF
     all-v10)  # the eighth bundled models (after fresh-v10): exported, timed, shipped
       SHIP_MODELS=$OUT10/final/models_fp32; SHIP_OUT=$OUT10/final; CENTRES=()
       for s in export-v10 tradeoff-v10 gallery-v2 compare-v10 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+    all-v10-more)  # the eighth predictor trained on (after fresh-v10 all-v10): trained, checked, measured, shipped
+      SHIP_MODELS=$OUT10/more/final/models_fp32; SHIP_OUT=$OUT10/more/final; CENTRES=()
+      for s in predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more \
+               eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more gallery-v2 \
+               compare-v10-more ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more all-v1)" >&2
       exit 2 ;;
   esac
 }
