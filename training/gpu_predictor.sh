@@ -3,14 +3,15 @@
 # predictor on true normal images at large batches, then bring slim checkpoints back. It fits the
 # 15 minutes of device time a session is now lent (the machine's start included), so it rebuilds only
 # what the predictor reads: the data-v2 shapes, cameras and 64x64 targets (`data --size 64`, whose
-# normals64 / silhouette64 / cameras equal the 256 build's exactly: tests/test_data.py), not the
+# normals64 / silhouette64 / cameras equal the 256 build's exactly: tests/test_data_render.py), not the
 # 256x256 sketches (86.9 s on the H200 machine's 16 cores). The generator's images cannot be made
 # there in time, so the runs read true normal images (the `ceiling-v2` recipe of the fourth pair);
 # back here the predictor is fine-tuned on the generated images (reproduce_models.sh predictor-v10).
 #
 #   bash training/gpu_predictor.sh INIT_RUN       on the GPU machine: INIT_RUN holds the predictor to
 #                                                 continue (a slim copy travels in gpucarry/, which
-#                                                 .gitignore ignores; carry it and .whl)
+#                                                 .gitignore ignores: reproduce_models.sh gpucarry-v10;
+#                                                 carry it and .whl)
 #   DEVICE=cpu SHAPES=2 CAL=8 END=150 bash training/gpu_predictor.sh INIT_RUN    a dry run on any machine
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
