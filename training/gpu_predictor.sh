@@ -29,6 +29,12 @@
 #     side by side against 3.3 alone, so g10_b512 stopped at 189 of its 889 iterations)
 #   SPECS="g10_b512b 512 6e-4" CAL=0 ITERS=520 WARMUP=20 END=190 WORKERS=0 bash training/gpu_predictor.sh runs/gpu10/g10_b512
 #     (typed as the train command this script runs; 520 iterations in 156 s alone: 3.4 it/s, 1,770 samples/s against about 110 on this project's 2-core CPU)
+# The tenth predictor's GPU stage (2026-11-26, H200, one warm machine, 13 minutes of device time held) was two calls from
+# the ninth (reproduce_models.sh gpucarry-v11 writes gpucarry/v10_more):
+#   SPECS="g11_b512 512 6e-4" bash training/gpu_predictor.sh gpucarry/v10_more
+#     (data 94 s; calibration 6.8 it/s with 4 loader workers, twice the rate without them; 2,418 iterations in 356 s)
+#   SPECS="g11_b512b 512 3e-4" CAL=0 ITERS=1500 WARMUP=20 END=265 bash training/gpu_predictor.sh runs/gpu10/g11_b512
+#     (the data of the first call reused; 1,500 iterations in 206 s: 3,900 at batch 512 in all, about 2.0 M samples)
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN}
@@ -50,9 +56,9 @@ THREADS=$(( $(nproc) / ${#NAMES[@]} > 0 ? $(nproc) / ${#NAMES[@]} : 1 ))
 [ "$CAL" -gt 0 ] || [ "$ITERS" -gt 0 ] || { echo "CAL=0 needs ITERS" >&2; exit 2; }
 elapsed() { echo $(($(date +%s) - T0)); }
 
-# Loader processes per run (WORKERS [4]): the 2026-11-26 calls ran with none, and gathering plus collating a batch of
+# Loader processes per run (WORKERS [4]): the eighth's calls ran with none, and gathering plus collating a batch of
 # 512 views and their 1,536 extra views costs 0.2 to 0.8 s on this project's 2-core CPU, in series with the GPU's step
-# there; with workers it overlaps the step (not yet measured on a GPU).
+# there; with workers it overlaps the step: 6.8 it/s at batch 512 on the H200 against 3.4 without (the tenth's calls).
 WORKERS=${WORKERS:-4}
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe, true normal images)
   echo train mesh --data "$DATA" --device "$DEVICE" --quiet --init-mesh "$INIT" --batch "$2" --lr-mesh "$3" \

@@ -39,6 +39,10 @@
 #   the seventh fine-tuned as long without the GPU stage (predictor-v10), chosen on the validation split (val-*-v10),
 #   measured (eval-*-v10 logs-v10); all-v10 exports, times and ships it (export-v10 tradeoff-v10 gallery-v2
 #   compare-v10 ship-v2 refine-v2 docs-v2, into OUT10/final).
+# The tenth candidate (fresh-v11 after fresh-v10 and all-v10-more, into RUNS11 [runs/v11] and OUT11 [out/v11]): the ninth
+#   predictor continued on a lent GPU (gpucarry-v11, then training/gpu_predictor.sh; fetch-gpu-v11, val-gpu-v11), then
+#   fine-tuned here on the generator's images against the ninth fine-tuned as long without it (predictor-v11), chosen on
+#   the validation split (val-*-v11), measured (eval-*-v11 logs-v11); all-v11 exports, times and ships it.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -89,6 +93,8 @@ RUNS9=${RUNS9:-runs/v9}
 OUT9=${OUT9:-out/v9}
 RUNS10=${RUNS10:-runs/v10}
 OUT10=${OUT10:-out/v10}
+RUNS11=${RUNS11:-runs/v11}
+OUT11=${OUT11:-out/v11}
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
 # centres only, as its published figures were measured: CENTRES [--voxel-centres]; CENTRES= reruns them with the
@@ -802,6 +808,11 @@ EOF
       cp "$RUNS9/v9_mirror/config.json" gpucarry/v9_mirror/
       python3 -c "from training.loop.checkpoint import save_slim_copy as c, load_latest_checkpoint as l
 it = l('$RUNS9/v9_mirror')['iteration']; c('$RUNS9/v9_mirror', f'gpucarry/v9_mirror/checkpoints/ckpt_{it:08d}.pt')" ;;
+    gpucarry-v11)  # the same for the ninth predictor (RUNS10/v10_more -> gpucarry/v10_more): what the tenth's GPU stage starts from
+      mkdir -p gpucarry/v10_more/checkpoints
+      cp "$RUNS10/v10_more/config.json" gpucarry/v10_more/
+      python3 -c "from training.loop.checkpoint import save_slim_copy as c, load_latest_checkpoint as l
+it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_more/checkpoints/ckpt_{it:08d}.pt')" ;;
     fetch-gpu-v10)  # what training/gpu_predictor.sh brought back (GPU_FILES: the folder the device tool copied
       # $OUT to; run it once per call's folder) becomes run folders RUNS10/NAME
       RUNS2=$RUNS10 step fetch-gpu ;;
@@ -888,6 +899,47 @@ it = l('$RUNS9/v9_mirror')['iteration']; c('$RUNS9/v9_mirror', f'gpucarry/v9_mir
       tradeoff_of "w16-v10" "$OUT10/final" ;;
     compare-v10)  # the app's ONNX path: the seven earlier bundled pairs (from git), the eighth, retrieval and the template
       compare_pairs "$OUT10" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c ;;
+    fetch-gpu-v11)  # what gpu_predictor.sh brought back for the tenth (GPU_FILES, once per call's folder) -> RUNS11/NAME
+      RUNS2=$RUNS11 step fetch-gpu ;;
+    val-gpu-v11)  # the tenth's GPU stage on the validation split's true normal images: its end (g11_b512b) and the
+      # first call's run (g11_b512) against the ninth predictor it started from
+      sketchmesh eval "$RUNS11/g11_b512b" --data "$DATA2" --split val --gt-normals --baseline-run "$RUNS10/v10_more" \
+        --baseline-run "$RUNS11/g11_b512" --no-retrieval --max-samples "$SAMPLES2" --threads 2 --out "$OUT11/val_gt_gpu" ;;
+    predictor-v11)  # two candidates for the tenth predictor at equal CPU time, side by side on one thread each, with the
+      # seventh's recipe (Adam 2e-4 cosine over V11_ITERS [10000], V11_MINUTES [52] at most; resumes): from the
+      # GPU-continued ninth (v11_gpu: RUNS11/g11_b512b, fetch-gpu-v11) and from the ninth as shipped (v11_cpu: RUNS10/v10_more)
+      [ -f "$RUNS11/g11_b512b/config.json" ] || { echo "predictor-v11 starts from $RUNS11/g11_b512b: run training/gpu_predictor.sh on a GPU, then fetch-gpu-v11" >&2; exit 1; }
+      [ -f "$RUNS10/v10_more/config.json" ] || { echo "predictor-v11 compares against $RUNS10/v10_more: run all-v10-more first" >&2; exit 1; }
+      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
+      local v11=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "${V11_ITERS:-10000}" --threads 1
+        --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V11_MINUTES:-52}" --input-normals normals16
+        --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
+      sketchmesh train mesh "${v11[@]}" --init-mesh "$RUNS11/g11_b512b" --out "$RUNS11/v11_gpu" &
+      sketchmesh train mesh "${v11[@]}" --init-mesh "$RUNS10/v10_more" --out "$RUNS11/v11_cpu" &
+      wait ;;
+    val-v11|val-strong-v11|val-side-v11|val-gt-v11)  # predictor-v11's two runs against the ninth, validation split
+      local c=${1/val-/eval-}; eval_case "$c"
+      eval_against val "$OUT11/val_${EVAL_NAME#eval_}" "$RUNS11/v11_gpu" "$RUNS11/v11_cpu" "$RUNS10/v10_more" ;;
+    eval-v11|eval-strong-v11|eval-side-v11|eval-gt-v11)  # the same on the test split, into OUT11/final
+      eval_case "$1"
+      eval_against test "$OUT11/final/$EVAL_NAME" "$RUNS11/v11_gpu" "$RUNS11/v11_cpu" "$RUNS10/v10_more" ;;
+    logs-v11)  # the v11 runs' training logs: rate and wall time, the silhouette term and normal error
+      log_summary "$RUNS11" g11_b512 g11_b512b v11_gpu v11_cpu ;;
+    export-v11)  # the chosen predictor (PRED11 [v11_gpu]) as float32 and int8, beside the generator file
+      export_pair "$RUNS11/${PRED11:-v11_gpu}" "$OUT11/final" "$OUT8/models_fifth/generator.onnx" ;;
+    tradeoff-v11)  # error against run time in the app's engine (run it alone: it times)
+      tradeoff_of "w16-v11" "$OUT11/final" ;;
+    compare-v11)  # the app's ONNX path: the nine bundled pairs so far (from git), the tenth, retrieval and the template
+      compare_pairs "$OUT11" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
+    fresh-v11)  # the tenth candidate (after fresh-v10 and all-v10-more, with gpu_predictor.sh's two calls in GPU_FILES1
+      # and GPU_FILES2)
+      GPU_FILES=${GPU_FILES1:?set GPU_FILES1 and GPU_FILES2 to the folders of the two calls} step fetch-gpu-v11
+      GPU_FILES=${GPU_FILES2:?set GPU_FILES2} step fetch-gpu-v11
+      for s in val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 \
+               eval-side-v11 eval-gt-v11 logs-v11; do step "$s"; done ;;
+    all-v11)  # the tenth bundled models (after fresh-v11): exported, timed, shipped
+      SHIP_MODELS=$OUT11/final/models_fp32; SHIP_OUT=$OUT11/final; CENTRES=()
+      for s in export-v11 tradeoff-v11 gallery-v2 compare-v11 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     fresh-v8)  # the sixth candidate from a fresh clone: data, the fifth pair imported, trained on, measured
       [ -f "$DATA2/manifest.json" ] || step data-v2
       for s in models-fifth-v8 generated-v8 import-v8 predictor-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 \
@@ -918,7 +970,7 @@ it = l('$RUNS9/v9_mirror')['iteration']; c('$RUNS9/v9_mirror', f'gpucarry/v9_mir
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v1)" >&2
       exit 2 ;;
   esac
 }
