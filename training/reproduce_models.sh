@@ -42,7 +42,8 @@
 # The tenth candidate (fresh-v11 after fresh-v10 and all-v10-more, into RUNS11 [runs/v11] and OUT11 [out/v11]): the ninth
 #   predictor continued on a lent GPU (gpucarry-v11, then training/gpu_predictor.sh; fetch-gpu-v11, val-gpu-v11), then
 #   fine-tuned here on the generator's images against the ninth fine-tuned as long without it (predictor-v11), chosen on
-#   the validation split (val-*-v11), measured (eval-*-v11 logs-v11); all-v11 exports, times and ships it.
+#   the validation split (val-*-v11), measured (eval-*-v11 logs-v11); all-v11 exports, times and ships it; all-v11-more
+#   trains it on alone (predictor-v11-more), checks it on the validation split, and measures and ships it likewise.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -931,6 +932,29 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
       tradeoff_of "w16-v11" "$OUT11/final" ;;
     compare-v11)  # the app's ONNX path: the nine bundled pairs so far (from git), the tenth, retrieval and the template
       compare_pairs "$OUT11" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
+    predictor-v11-more)  # the tenth predictor (PRED11 [v11_gpu]) trained on alone on two threads with the same recipe
+      # (V11M_ITERS [9000], V11M_MINUTES [32] at most; resumes), then checked against it on the validation split
+      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS11/${PRED11:-v11_gpu}" --lambda-n 0.002 --lr-mesh 2e-4 \
+        --iters "${V11M_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
+        --max-minutes "${V11M_MINUTES:-32}" --input-normals normals16 --no-normal-edges --mirror 0.5 \
+        --mirror-inputs normals16_mirror --out "$RUNS11/v11_more" ;;
+    val-v11-more|val-strong-v11-more|val-side-v11-more|val-gt-v11-more)  # v11_more against the tenth, validation split
+      local c=${1/val-/eval-}; eval_case "${c%-more}"
+      eval_against val "$OUT11/more/val_${EVAL_NAME#eval_}" "$RUNS11/v11_more" "$RUNS11/${PRED11:-v11_gpu}" ;;
+    eval-v11-more|eval-strong-v11-more|eval-side-v11-more|eval-gt-v11-more)  # the same on the test split
+      eval_case "${1%-more}"
+      eval_against test "$OUT11/more/final/$EVAL_NAME" "$RUNS11/v11_more" "$RUNS11/${PRED11:-v11_gpu}" ;;
+    export-v11-more)  # v11_more as float32 and int8, beside the generator file
+      export_pair "$RUNS11/v11_more" "$OUT11/more/final" "$OUT8/models_fifth/generator.onnx" ;;
+    tradeoff-v11-more)  # error against run time in the app's engine (run it alone: it times)
+      tradeoff_of "w16-v11-more" "$OUT11/more/final" ;;
+    compare-v11-more)  # the app's ONNX path: the nine bundled pairs before the tenth (from git), v11_more, retrieval, the template
+      compare_pairs "$OUT11/more" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
+    all-v11-more)  # the tenth predictor trained on (after fresh-v11): trained, checked, measured, shipped
+      SHIP_MODELS=$OUT11/more/final/models_fp32; SHIP_OUT=$OUT11/more/final; CENTRES=()
+      for s in predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more \
+               eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more gallery-v2 \
+               compare-v11-more ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     fresh-v11)  # the tenth candidate (after fresh-v10 and all-v10-more, with gpu_predictor.sh's two calls in GPU_FILES1
       # and GPU_FILES2)
       GPU_FILES=${GPU_FILES1:?set GPU_FILES1 and GPU_FILES2 to the folders of the two calls} step fetch-gpu-v11
@@ -970,7 +994,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more compare-v11-more all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v11-more all-v1)" >&2
       exit 2 ;;
   esac
 }
