@@ -13,6 +13,15 @@
 #                                                 .gitignore ignores: reproduce_models.sh gpucarry-v10;
 #                                                 carry it and .whl)
 #   DEVICE=cpu SHAPES=2 CAL=8 END=150 bash training/gpu_predictor.sh INIT_RUN    a dry run on any machine
+#   ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-blocks 1" bash training/gpu_predictor.sh fresh
+#                                                 a predictor of another size trained from the start (INIT_RUN
+#                                                 "fresh"); a later session continues it with the same ARCH and
+#                                                 INIT_RUN its slim copy: a larger predictor trained over several
+#                                                 lent GPUs, each call's run resumable from what came back (that
+#                                                 size: 13.8 M parameters, a 55 MB slim checkpoint, which still
+#                                                 travels out with .whl under carry's 64 MiB and comes back in
+#                                                 15 MiB parts; dry-run on this CPU: DEVICE=cpu SHAPES=2 CAL=8
+#                                                 END=170 WORKERS=0 SPECS="big 8 6e-4" ARCH=... then fetch-gpu-v11)
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
 # cores split between them. A short concurrent calibration run of each (CAL iterations) sets its cosine
@@ -37,7 +46,7 @@
 #     (the data of the first call reused; 1,500 iterations in 206 s: 3,900 at batch 512 in all, about 2.0 M samples)
 set -uo pipefail
 
-INIT=${1:?usage: gpu_predictor.sh INIT_RUN}
+INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}
 DATA=${DATA:-data/g64}
 RUNS=${RUNS:-runs/gpu10}
 DEVICE=${DEVICE:-cuda}
@@ -60,8 +69,11 @@ elapsed() { echo $(($(date +%s) - T0)); }
 # 512 views and their 1,536 extra views costs 0.2 to 0.8 s on this project's 2-core CPU, in series with the GPU's step
 # there; with workers it overlaps the step: 6.8 it/s at batch 512 on the H200 against 3.4 without (the tenth's calls).
 WORKERS=${WORKERS:-4}
+ARCH=${ARCH:-}  # predictor size flags of `train mesh` (the same in every call that continues the run)
+INIT_ARGS=(--init-mesh "$INIT"); [ "$INIT" = fresh ] && INIT_ARGS=()
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe, true normal images)
-  echo train mesh --data "$DATA" --device "$DEVICE" --quiet --init-mesh "$INIT" --batch "$2" --lr-mesh "$3" \
+  # shellcheck disable=SC2086
+  echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" $ARCH --batch "$2" --lr-mesh "$3" \
     --mirror 0.5 --num-workers "$WORKERS" --val-every 0 --plot-every 0 --threads "$THREADS"
 }
 
@@ -123,6 +135,11 @@ for n in "${NAMES[@]}"; do printf '%-10s ' "$n"; tail -n 1 "$RUNS/$n/log.csv" | 
 [ -n "${OUT:-}" ] || exit 0
 for n in "${NAMES[@]}"; do  # the newest checkpoint of each run without optimiser state
   python3 -c "from training.loop.checkpoint import save_slim_copy as c; print('$n: iteration', c('$RUNS/$n', '$OUT/$n.pt'))"
+  # the device tool brings back files of at most 16 MiB: a larger predictor's checkpoint comes back in parts
+  # (NAME.pt.part-aa, -ab, ...), which fetch-gpu joins
+  if [ "$(stat -c %s "$OUT/$n.pt")" -gt $((15 * 1024 * 1024)) ]; then
+    split -b 15M "$OUT/$n.pt" "$OUT/$n.pt.part-" && rm "$OUT/$n.pt"
+  fi
 done
 tar czf "$OUT/logs.tgz" --exclude='checkpoints' "$RUNS" 2>/dev/null  # RUNS/NAME/...: fetch-gpu's layout
 ls -la "$OUT"; echo "done at $(elapsed) s"

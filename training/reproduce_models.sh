@@ -719,6 +719,7 @@ EOF
       # copied $OUT to) becomes run folders RUNS2/NAME (checkpoint without optimiser state, logs, config).
       # GPU_BASIS (optional): the predictor basis `gpu_lease.sh basis` saved on that machine, for checkpoints
       # written before the basis was stored in them (issue 16's GPU runs; see CompactMeshPredictor.basis)
+      # (gpu_predictor.sh sends a checkpoint over 16 MiB as NAME.pt.part-aa, -ab, ...: joined here)
       : "${GPU_FILES:?set GPU_FILES to the folder holding the NAME.pt files and logs.tgz of gpu_lease.sh}"
       mkdir -p "$RUNS2"
       python3 - "$GPU_FILES" "$RUNS2" "${GPU_BASIS:-}" <<'EOF'
@@ -732,8 +733,12 @@ with tarfile.open(src / "logs.tgz") as tar:
             dest = runs / Path(*parts[2:])  # runs/gpu/NAME/file -> RUNS2/NAME/file
             dest.parent.mkdir(parents=True, exist_ok=True)
             dest.write_bytes(tar.extractfile(m).read())
-for f in sorted(src.glob("*.pt")):
-    state = torch.load(f, map_location="cpu", weights_only=True)
+import io
+stems = {f.name.split(".pt.part-")[0] for f in src.glob("*.pt.part-*")}  # a checkpoint over 16 MiB came in parts
+for f in sorted([*src.glob("*.pt"), *(src / f"{s}.pt" for s in stems)]):
+    parts = sorted(src.glob(f"{f.name}.part-*"))
+    blob = b"".join(p.read_bytes() for p in parts) if parts else f.read_bytes()
+    state = torch.load(io.BytesIO(blob), map_location="cpu", weights_only=True)
     it = int(state["iteration"])
     pred = state["models"].get("predictor")
     if pred is not None and "basis" not in pred:
