@@ -159,6 +159,16 @@ compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from 
     --threads 2 --out "$out/final/compare"
 }
 
+finetune_pair() {  # $1 a GPU-continued run, $2 the run it is compared with, $3 a prefix: both trained side by side on one
+  # thread each with the seventh's recipe into $3_gpu and $3_cpu, Adam 2e-4 cosine over $4 iterations, $5 minutes at most
+  [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
+  local args=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "$4" --threads 1 --ckpt-every 250 --val-every 0
+    --quiet --max-minutes "$5" --input-normals normals16 --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
+  sketchmesh train mesh "${args[@]}" --init-mesh "$1" --out "$3_gpu" &
+  sketchmesh train mesh "${args[@]}" --init-mesh "$2" --out "$3_cpu" &
+  wait
+}
+
 log_summary() {  # $1: runs folder, then run names: iterations, wall time, median rate, and the silhouette term and
   # normal error over the first 100 and the last 1,000 iterations of each run's log.csv (runs without one are skipped)
   python3 - "$@" <<'EOF'
@@ -828,13 +838,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
       # (v10_cpu: RUNS9/v9_mirror), both on the generator's images with exact mirrored inputs
       [ -f "$RUNS10/g10_b512b/config.json" ] || { echo "predictor-v10 starts from $RUNS10/g10_b512b: run training/gpu_predictor.sh on a GPU, then fetch-gpu-v10" >&2; exit 1; }
       [ -f "$RUNS9/v9_mirror/config.json" ] || { echo "predictor-v10 compares against $RUNS9/v9_mirror: run fresh-v9 first" >&2; exit 1; }
-      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
-      local v10=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "${V10_ITERS:-12000}" --threads 1
-        --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V10_MINUTES:-60}" --input-normals normals16
-        --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
-      sketchmesh train mesh "${v10[@]}" --init-mesh "$RUNS10/g10_b512b" --out "$RUNS10/v10_gpu" &
-      sketchmesh train mesh "${v10[@]}" --init-mesh "$RUNS9/v9_mirror" --out "$RUNS10/v10_cpu" &
-      wait ;;
+      finetune_pair "$RUNS10/g10_b512b" "$RUNS9/v9_mirror" "$RUNS10/v10" "${V10_ITERS:-12000}" "${V10_MINUTES:-60}" ;;
     val-v9)  # predictor-v9's two runs against the sixth predictor on the validation split, clean sketches
       sketchmesh eval "$RUNS9/v9_mirror" --data "$DATA2" --split val --generator-run "$RUNS8/fifth/generator" \
         --baseline-run "$RUNS9/v9_more" --baseline-run "$RUNS8/v8_more2" --no-retrieval \
@@ -916,13 +920,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
       # GPU-continued ninth (v11_gpu: RUNS11/g11_b512b, fetch-gpu-v11) and from the ninth as shipped (v11_cpu: RUNS10/v10_more)
       [ -f "$RUNS11/g11_b512b/config.json" ] || { echo "predictor-v11 starts from $RUNS11/g11_b512b: run training/gpu_predictor.sh on a GPU, then fetch-gpu-v11" >&2; exit 1; }
       [ -f "$RUNS10/v10_more/config.json" ] || { echo "predictor-v11 compares against $RUNS10/v10_more: run all-v10-more first" >&2; exit 1; }
-      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
-      local v11=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "${V11_ITERS:-10000}" --threads 1
-        --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V11_MINUTES:-52}" --input-normals normals16
-        --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
-      sketchmesh train mesh "${v11[@]}" --init-mesh "$RUNS11/g11_b512b" --out "$RUNS11/v11_gpu" &
-      sketchmesh train mesh "${v11[@]}" --init-mesh "$RUNS10/v10_more" --out "$RUNS11/v11_cpu" &
-      wait ;;
+      finetune_pair "$RUNS11/g11_b512b" "$RUNS10/v10_more" "$RUNS11/v11" "${V11_ITERS:-10000}" "${V11_MINUTES:-52}" ;;
     val-v11|val-strong-v11|val-side-v11|val-gt-v11)  # predictor-v11's two runs against the ninth, validation split
       local c=${1/val-/eval-}; eval_case "$c"
       eval_against val "$OUT11/val_${EVAL_NAME#eval_}" "$RUNS11/v11_gpu" "$RUNS11/v11_cpu" "$RUNS10/v10_more" ;;
