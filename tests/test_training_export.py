@@ -317,3 +317,24 @@ def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
     side = markdown_table({**result, "elevation": 0.0, "augment_strength": 1.0})
     assert side.splitlines()[0].endswith("4 samples, views at 0 degrees elevation, sketches augmented at strength 1")
     assert markdown_table({**result, "gt_normals": True}).splitlines()[0].endswith("4 samples, ground-truth normals")
+
+
+def test_parity_inputs_of_a_small_sketch_dataset_keep_its_normal_images(tmp_path):
+    """A run trained on ``data --size 64`` (training/gpu_predictor.sh) exports: the predictor's parity check
+    reads the data's real normal images, the generator's reads drawn 256 x 256 sketches (the data's are 64)."""
+    from training.data.dataset import BuildSettings, Job, build_dataset
+    from training.export.to_onnx import parity_inputs
+    from training.loop.trainer import make_dataset
+
+    settings = BuildSettings(size=64, small_size=64, num_azimuths=3, elevations=(30.0,))
+    build_dataset(tmp_path / "d", [Job("lamp", "lamp_00001", "test", "procedural", index=1)], settings, progress=False)
+    cfg = TrainConfig(data_dir=str(tmp_path / "d"))
+    ds = make_dataset(cfg.replace(augment_strength=0.0, extra_views=0), "test")
+    assert np.asarray(ds[0]["sketch"]).shape[-1] == 64
+    sketches, normals64, source = parity_inputs(cfg)
+    assert tuple(sketches.shape) == (2, 1, 256, 256) and "synthetic sketches and 2 test normal images" in source
+    expected = np.stack([np.asarray(ds[i]["normals64"], np.float32) for i in (0, len(ds) - 1)])
+    np.testing.assert_array_equal(normals64.numpy(), expected)
+    _, fallback, _ = parity_inputs(TrainConfig(data_dir=str(tmp_path / "no_data")))
+    assert not np.array_equal(normals64.numpy(), fallback.numpy())
+    assert sketches.amax() == 1.0 and sketches.amin() == 0.0

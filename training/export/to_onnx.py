@@ -150,7 +150,9 @@ def parity_inputs(cfg: TrainConfig, count: int = PARITY_SAMPLES) -> tuple[torch.
     """Real inputs for the parity check: sketches (N, 1, 256, 256) and normals64 (N, 3, 64, 64).
 
     Taken from the run's dataset (test split, else val, else train); when the data folder is not
-    available, synthetic ellipse-and-line sketches and a rendered sphere's normal image are used.
+    available, synthetic ellipse-and-line sketches and a rendered sphere's normal image are used. A
+    dataset built with small sketches (``data --size 64``, as training/gpu_predictor.sh builds it)
+    gives its real normal images and synthetic sketches: the generator reads 256 x 256.
 
     Returns:
         (sketches, normals64, a description of the source).
@@ -166,17 +168,13 @@ def parity_inputs(cfg: TrainConfig, count: int = PARITY_SAMPLES) -> tuple[torch.
             items = [ds[int(i)] for i in idx]
             sk = torch.stack([torch.as_tensor(np.asarray(it["sketch"]), dtype=torch.float32) for it in items])
             nm = torch.stack([torch.as_tensor(np.asarray(it["normals64"]), dtype=torch.float32) for it in items])
-            return sk, nm, f"{len(items)} {split} samples of {cfg.data_dir}"
         except Exception:  # no data here: fall back to synthetic inputs below
             continue
-    import cv2
-
-    sk = np.zeros((count, 1, 256, 256), np.float32)
-    for i in range(count):
-        img = np.zeros((256, 256), np.uint8)
-        cv2.ellipse(img, (128, 128), (100 - 20 * i, 60 + 10 * i), 15.0 * i, 0, 360, 255, 2)
-        cv2.line(img, (40, 200), (210, 60 + 10 * i), 255, 2)
-        sk[i, 0] = img / 255.0
+        if tuple(sk.shape[-2:]) == (contract.SKETCH_SIZE, contract.SKETCH_SIZE):
+            return sk, nm, f"{len(items)} {split} samples of {cfg.data_dir}"
+        return (torch.from_numpy(_synthetic_sketches(len(items))), nm,
+                f"synthetic sketches and {len(items)} {split} normal images of {cfg.data_dir} "
+                f"(its sketches are {sk.shape[-1]} px)")
     yy, xx = np.mgrid[0:64, 0:64]
     u, v = (xx + 0.5) / 32 - 1, 1 - (yy + 0.5) / 32
     r2 = (u / 0.8) ** 2 + (v / 0.8) ** 2
@@ -184,7 +182,21 @@ def parity_inputs(cfg: TrainConfig, count: int = PARITY_SAMPLES) -> tuple[torch.
     nz = np.sqrt(np.clip(1 - r2, 0, 1))
     n = np.stack([u / 0.8, v / 0.8, nz]) * inside
     n = np.where(inside, (n + 1) / 2, 0.0).astype(np.float32)
-    return torch.from_numpy(sk), torch.from_numpy(np.repeat(n[None], count, axis=0)), "synthetic sketches (no data folder)"
+    return (torch.from_numpy(_synthetic_sketches(count)), torch.from_numpy(np.repeat(n[None], count, axis=0)),
+            "synthetic sketches (no data folder)")
+
+
+def _synthetic_sketches(count: int) -> np.ndarray:
+    """(count, 1, 256, 256) float32 ellipse-and-line drawings, each a little different."""
+    import cv2
+
+    sk = np.zeros((count, 1, contract.SKETCH_SIZE, contract.SKETCH_SIZE), np.float32)
+    for i in range(count):
+        img = np.zeros((contract.SKETCH_SIZE, contract.SKETCH_SIZE), np.uint8)
+        cv2.ellipse(img, (128, 128), (100 - 20 * i, 60 + 10 * i), 15.0 * i, 0, 360, 255, 2)
+        cv2.line(img, (40, 200), (210, 60 + 10 * i), 255, 2)
+        sk[i, 0] = img / 255.0
+    return sk
 
 
 def _max_err(a: list[np.ndarray], b: list[np.ndarray]) -> float:
