@@ -159,14 +159,29 @@ compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from 
     --threads 2 --out "$out/final/compare"
 }
 
+train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterations (Adam 2e-4 cosine), $4 minutes at most,
+  # $5 threads, normal weight $6 [0.002] (its gradient kept off the outline), on the generator's images with half of every
+  # batch mirrored from the generator's images of the flipped drawings; resumes
+  sketchmesh train mesh --data "$DATA2" --init-mesh "$1" --lambda-n "${6:-0.002}" --lr-mesh 2e-4 --iters "$3" \
+    --threads "$5" --ckpt-every 250 --val-every 0 --quiet --max-minutes "$4" --input-normals normals16 \
+    --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
+}
+
 finetune_pair() {  # $1 a GPU-continued run, $2 the run it is compared with, $3 a prefix: both trained side by side on one
-  # thread each with the seventh's recipe into $3_gpu and $3_cpu, Adam 2e-4 cosine over $4 iterations, $5 minutes at most
+  # thread each with train7 into $3_gpu and $3_cpu, $4 iterations, $5 minutes at most
   [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
-  local args=(--data "$DATA2" --lambda-n 0.002 --lr-mesh 2e-4 --iters "$4" --threads 1 --ckpt-every 250 --val-every 0
-    --quiet --max-minutes "$5" --input-normals normals16 --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror)
-  sketchmesh train mesh "${args[@]}" --init-mesh "$1" --out "$3_gpu" &
-  sketchmesh train mesh "${args[@]}" --init-mesh "$2" --out "$3_cpu" &
+  train7 "$1" "$3_gpu" "$4" "$5" 1 &
+  train7 "$2" "$3_cpu" "$4" "$5" 1 &
   wait
+}
+
+gpucarry() {  # run $1's newest checkpoint without optimiser state (13 MB for today's predictor) and its config into
+  # gpucarry/NAME, what training/gpu_predictor.sh starts from on a GPU machine (carry gpucarry and .whl)
+  local name; name=$(basename "$1")
+  mkdir -p "gpucarry/$name/checkpoints"
+  cp "$1/config.json" "gpucarry/$name/"
+  python3 -c "from training.loop.checkpoint import save_slim_copy as c, load_latest_checkpoint as l
+it = l('$1')['iteration']; c('$1', f'gpucarry/$name/checkpoints/ckpt_{it:08d}.pt')"
 }
 
 log_summary() {  # $1: runs folder, then run names: iterations, wall time, median rate, and the silhouette term and
@@ -818,17 +833,10 @@ EOF
       sketchmesh train mesh "${v9[@]}" --out "$RUNS9/v9_more" &
       sketchmesh train mesh "${v9[@]}" --mirror 0.5 --mirror-inputs normals16_mirror --out "$RUNS9/v9_mirror" &
       wait ;;
-    gpucarry-v10)  # what training/gpu_predictor.sh starts from on the GPU machine: gpucarry/v9_mirror, the seventh
-      # predictor's newest checkpoint without optimiser state (13 MB) and its config (carry gpucarry and .whl)
-      mkdir -p gpucarry/v9_mirror/checkpoints
-      cp "$RUNS9/v9_mirror/config.json" gpucarry/v9_mirror/
-      python3 -c "from training.loop.checkpoint import save_slim_copy as c, load_latest_checkpoint as l
-it = l('$RUNS9/v9_mirror')['iteration']; c('$RUNS9/v9_mirror', f'gpucarry/v9_mirror/checkpoints/ckpt_{it:08d}.pt')" ;;
-    gpucarry-v11)  # the same for the ninth predictor (RUNS10/v10_more -> gpucarry/v10_more): what the tenth's GPU stage starts from
-      mkdir -p gpucarry/v10_more/checkpoints
-      cp "$RUNS10/v10_more/config.json" gpucarry/v10_more/
-      python3 -c "from training.loop.checkpoint import save_slim_copy as c, load_latest_checkpoint as l
-it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_more/checkpoints/ckpt_{it:08d}.pt')" ;;
+    gpucarry-v10)  # what the eighth's GPU stage started from: the seventh predictor, gpucarry/v9_mirror
+      gpucarry "$RUNS9/v9_mirror" ;;
+    gpucarry-v11)  # what the tenth's GPU stage started from: the ninth predictor, gpucarry/v10_more
+      gpucarry "$RUNS10/v10_more" ;;
     fetch-gpu-v10)  # what training/gpu_predictor.sh brought back (GPU_FILES: the folder the device tool copied
       # $OUT to; run it once per call's folder) becomes run folders RUNS10/NAME
       RUNS2=$RUNS10 step fetch-gpu ;;
@@ -878,10 +886,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
         --baseline-run "$RUNS10/g10_b512" --no-retrieval --max-samples "$SAMPLES2" --threads 2 --out "$OUT10/val_gt_gpu" ;;
     predictor-v10-more)  # the eighth predictor trained on alone on two threads with the same recipe (V10M_ITERS [11000],
       # V10M_MINUTES [42] at most; resumes), then checked against it on the validation split (val-v10-more)
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS10/v10_gpu" --lambda-n 0.002 --lr-mesh 2e-4 \
-        --iters "${V10M_ITERS:-11000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
-        --max-minutes "${V10M_MINUTES:-42}" --input-normals normals16 --no-normal-edges --mirror 0.5 \
-        --mirror-inputs normals16_mirror --out "$RUNS10/v10_more" ;;
+      train7 "$RUNS10/v10_gpu" "$RUNS10/v10_more" "${V10M_ITERS:-11000}" "${V10M_MINUTES:-42}" 2 ;;
     val-v10-more|val-strong-v10-more|val-side-v10-more|val-gt-v10-more)  # v10_more against v10_gpu, validation split
       local c=${1/val-/eval-}; eval_case "${c%-more}"
       eval_against val "$OUT10/more/val_${EVAL_NAME#eval_}" "$RUNS10/v10_more" "$RUNS10/v10_gpu" ;;
@@ -941,10 +946,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
       compare_pairs "$OUT11" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
     predictor-v11-more)  # the tenth predictor (PRED11 [v11_gpu]) trained on alone on two threads with the same recipe
       # (V11M_ITERS [9000], V11M_MINUTES [32] at most; resumes), then checked against it on the validation split
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS11/${PRED11:-v11_gpu}" --lambda-n 0.002 --lr-mesh 2e-4 \
-        --iters "${V11M_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
-        --max-minutes "${V11M_MINUTES:-32}" --input-normals normals16 --no-normal-edges --mirror 0.5 \
-        --mirror-inputs normals16_mirror --out "$RUNS11/v11_more" ;;
+      train7 "$RUNS11/${PRED11:-v11_gpu}" "$RUNS11/v11_more" "${V11M_ITERS:-9000}" "${V11M_MINUTES:-32}" 2 ;;
     val-v11-more|val-strong-v11-more|val-side-v11-more|val-gt-v11-more)  # v11_more against the tenth, validation split
       local c=${1/val-/eval-}; eval_case "${c%-more}"
       eval_against val "$OUT11/more/val_${EVAL_NAME#eval_}" "$RUNS11/v11_more" "$RUNS11/${PRED11:-v11_gpu}" ;;
@@ -965,10 +967,7 @@ it = l('$RUNS10/v10_more')['iteration']; c('$RUNS10/v10_more', f'gpucarry/v10_mo
     control-v10-more)  # the ninth predictor's silhouette-only control: predictor-v10-more's run (the same start, v10_gpu,
       # mirrored items, schedule and 11,000 iterations) with the normal weight 0, alone on two threads
       # (V10MC_MINUTES [45] at most; resumes)
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS10/v10_gpu" --lambda-n 0 --lr-mesh 2e-4 \
-        --iters "${V10M_ITERS:-11000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
-        --max-minutes "${V10MC_MINUTES:-45}" --input-normals normals16 --no-normal-edges --mirror 0.5 \
-        --mirror-inputs normals16_mirror --out "$RUNS10/v10_silhouette" ;;
+      train7 "$RUNS10/v10_gpu" "$RUNS10/v10_silhouette" "${V10M_ITERS:-11000}" "${V10MC_MINUTES:-45}" 2 0 ;;
     eval-control-v10-more|eval-control-strong-v10-more|eval-control-side-v10-more|eval-control-gt-v10-more)  # full
       # minus silhouette-only for the ninth pair: v10_more against control-v10-more on the test split
       local c=${1/control-/}; eval_case "${c%-more}"
