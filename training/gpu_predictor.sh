@@ -44,6 +44,13 @@
 #     (data 94 s; calibration 6.8 it/s with 4 loader workers, twice the rate without them; 2,418 iterations in 356 s)
 #   SPECS="g11_b512b 512 3e-4" CAL=0 ITERS=1500 WARMUP=20 END=265 bash training/gpu_predictor.sh runs/gpu10/g11_b512
 #     (the data of the first call reused; 1,500 iterations in 206 s: 3,900 at batch 512 in all, about 2.0 M samples)
+# The larger predictor (64 channels, hidden 1024: 7.1 M parameters, a 28 MB checkpoint, within the 40 MB of ONNX the app
+# allows beside the 9.3 MB generator) from the start (2026-11-26, H100, one warm machine, 13 minutes of device time held):
+#   ARCH="--predictor-channels 64 --predictor-hidden 1024" SPECS="big12 512 1e-3" END=530 bash training/gpu_predictor.sh fresh
+#     (data 65 s; calibration 8.8 it/s; 2,900 iterations in 400 s)
+#   ARCH="--predictor-channels 64 --predictor-hidden 1024" SPECS="big12b 512 5e-4" CAL=0 ITERS=1400 WARMUP=20 END=245 \
+#     bash training/gpu_predictor.sh runs/gpu10/big12
+#     (1,400 iterations in 188 s: 4,300 at batch 512, about 2.2 M samples; reproduce_models.sh fetch-gpu-v12, val-gpu-v12)
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}
