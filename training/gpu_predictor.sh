@@ -13,15 +13,17 @@
 #                                                 .gitignore ignores: reproduce_models.sh gpucarry-v10;
 #                                                 carry it and .whl)
 #   DEVICE=cpu SHAPES=2 CAL=8 END=150 bash training/gpu_predictor.sh INIT_RUN    a dry run on any machine
-#   ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-blocks 1" bash training/gpu_predictor.sh fresh
+#   ARCH="--predictor-channels 64 --predictor-hidden 1024" bash training/gpu_predictor.sh fresh
 #                                                 a predictor of another size trained from the start (INIT_RUN
 #                                                 "fresh"); a later session continues it with the same ARCH and
 #                                                 INIT_RUN its slim copy: a larger predictor trained over several
 #                                                 lent GPUs, each call's run resumable from what came back (that
-#                                                 size: 13.8 M parameters, a 55 MB slim checkpoint, which still
-#                                                 travels out with .whl under carry's 64 MiB and comes back in
-#                                                 15 MiB parts; dry-run on this CPU: DEVICE=cpu SHAPES=2 CAL=8
-#                                                 END=170 WORKERS=0 SPECS="big 8 6e-4" ARCH=... then fetch-gpu-v11)
+#                                                 size: 7.1 M parameters, a 28 MB slim checkpoint, which travels
+#                                                 out with .whl under carry's 64 MiB and comes back in 15 MiB
+#                                                 parts; adding --predictor-blocks 1 makes 13.8 M and 55 MB, over
+#                                                 the app's 40 MB of ONNX beside the generator; dry-run on this
+#                                                 CPU: DEVICE=cpu SHAPES=2 CAL=8 END=170 WORKERS=0
+#                                                 SPECS="big 8 6e-4" ARCH=... then fetch-gpu-v12)
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
 # cores split between them. A short concurrent calibration run of each (CAL iterations) sets its cosine
