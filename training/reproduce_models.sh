@@ -46,7 +46,9 @@
 #   trains it on alone (predictor-v11-more), checks it on the validation split, and measures and ships it likewise.
 # A larger predictor from the start (into RUNS12 [runs/v12] and OUT12 [out/v12]): trained on a lent GPU from scratch
 #   (training/gpu_predictor.sh fresh with ARCH; fetch-gpu-v12), checked on the validation split's true normal images
-#   against the ninth's GPU stage (val-gpu-v12); it is fine-tuned here on the generator's images only once it passes it.
+#   against the ninth's GPU stage (val-gpu-v12), fine-tuned here on the generator's images (predictor-v12), chosen on
+#   the validation split (val-*-v12) against the ninth and the ninth fine-tuned 10,000 iterations more, measured
+#   (eval-*-v12 logs-v12) (fresh-v12); all-v12 exports, times and ships it.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -935,6 +937,30 @@ EOF
       # ninth fine-tuned 10,000 iterations more, predictor-v11)
       [ -f "$RUNS12/big12b/config.json" ] || { echo "predictor-v12 starts from $RUNS12/big12b: run training/gpu_predictor.sh fresh on a GPU, then fetch-gpu-v12" >&2; exit 1; }
       PRED_ARCH=$BIG_ARCH train7 "$RUNS12/big12b" "$RUNS12/v12_big" "${V12_ITERS:-8000}" "${V12_MINUTES:-50}" 2 ;;
+    val-v12|val-strong-v12|val-side-v12|val-gt-v12)  # the larger predictor fine-tuned (v12_big) against the ninth and
+      # v11_cpu (the ninth fine-tuned 10,000 iterations more), validation split
+      local c=${1/val-/eval-}; eval_case "$c"
+      eval_against val "$OUT12/val_${EVAL_NAME#eval_}" "$RUNS12/v12_big" "$RUNS10/v10_more" "$RUNS11/v11_cpu" ;;
+    eval-v12|eval-strong-v12|eval-side-v12|eval-gt-v12)  # the same on the test split, into OUT12/final
+      eval_case "$1"
+      eval_against test "$OUT12/final/$EVAL_NAME" "$RUNS12/v12_big" "$RUNS10/v10_more" "$RUNS11/v11_cpu" ;;
+    logs-v12)  # the larger predictor's runs: rate and wall time, the silhouette term and normal error
+      log_summary "$RUNS12" big12 big12b v12_big ;;
+    export-v12)  # v12_big as float32 and int8, beside the generator file
+      export_pair "$RUNS12/v12_big" "$OUT12/final" "$OUT8/models_fifth/generator.onnx" ;;
+    tradeoff-v12)  # error against run time in the app's engine (run it alone: it times)
+      tradeoff_of "w16-v12" "$OUT12/final" ;;
+    compare-v12)  # the app's ONNX path: the nine bundled pairs so far (from git), v12_big's, retrieval, the template
+      compare_pairs "$OUT12" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
+    fresh-v12)  # the larger predictor (after fresh-v11: data-v2, the fifth generator's images; gpu_predictor.sh fresh's
+      # two calls in GPU_FILES1 and GPU_FILES2): fetched, checked, fine-tuned, measured
+      GPU_FILES=${GPU_FILES1:?set GPU_FILES1 and GPU_FILES2 to the folders of the two calls} step fetch-gpu-v12
+      GPU_FILES=${GPU_FILES2:?set GPU_FILES2} step fetch-gpu-v12
+      for s in val-gpu-v12 predictor-v12 val-v12 val-strong-v12 val-side-v12 val-gt-v12 eval-v12 eval-strong-v12 \
+               eval-side-v12 eval-gt-v12 logs-v12; do step "$s"; done ;;
+    all-v12)  # the larger predictor's pair (after fresh-v12): exported, timed, shipped
+      SHIP_MODELS=$OUT12/final/models_fp32; SHIP_OUT=$OUT12/final; CENTRES=()
+      for s in export-v12 tradeoff-v12 gallery-v2 compare-v12 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
     val-gpu-v11)  # the tenth's GPU stage on the validation split's true normal images: its end (g11_b512b) and the
       # first call's run (g11_b512) against the ninth predictor it started from
       sketchmesh eval "$RUNS11/g11_b512b" --data "$DATA2" --split val --gt-normals --baseline-run "$RUNS10/v10_more" \
@@ -1032,7 +1058,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 fit-v11 fit-gt-v11 predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more compare-v11-more control-v10-more eval-control-v10-more eval-control-strong-v10-more eval-control-side-v10-more eval-control-gt-v10-more logs-control-v10-more fetch-gpu-v12 val-gpu-v12 predictor-v12 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v11-more all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 fit-v11 fit-gt-v11 predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more compare-v11-more control-v10-more eval-control-v10-more eval-control-strong-v10-more eval-control-side-v10-more eval-control-gt-v10-more logs-control-v10-more fetch-gpu-v12 val-gpu-v12 predictor-v12 val-v12 val-strong-v12 val-side-v12 val-gt-v12 eval-v12 eval-strong-v12 eval-side-v12 eval-gt-v12 logs-v12 export-v12 tradeoff-v12 compare-v12 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v11-more fresh-v12 all-v12 all-v1)" >&2
       exit 2 ;;
   esac
 }
