@@ -24,6 +24,15 @@
 #                                                 the app's 40 MB of ONNX beside the generator; dry-run on this
 #                                                 CPU: DEVICE=cpu SHAPES=2 CAL=8 END=170 WORKERS=0
 #                                                 SPECS="big 8 6e-4" ARCH=... then fetch-gpu-v12)
+#   INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024" SPECS="gen12 512 4e-4" \
+#     bash training/gpu_predictor.sh gpucarry/v12_big
+#                                                 that predictor fine-tuned on the generator's images as the app feeds
+#                                                 it, at GPU speed (reproduce_models.sh gpucarry-v12; carry .whl,
+#                                                 gpucarry/v12_big and gpucarry/models_fifth: 44 MB); dry-run on this
+#                                                 CPU: DEVICE=cpu SHAPES=2 CAL=8 END=420 WORKERS=0 SPECS="gen 8 3e-4"
+#                                                 INPUTS=generated DATA=/tmp/g256 ARCH=... (data 42 s, each generated
+#                                                 set 35 s for 1,056 views on two busy cores: about 33 ms per view and
+#                                                 core, so about 105 s per set on 16 cores for the 49,920 training views)
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
 # cores split between them. A short concurrent calibration run of each (CAL iterations) sets its cosine
@@ -56,7 +65,19 @@
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}
-DATA=${DATA:-data/g64}
+# INPUTS [true]: what the predictor reads. "true": the true normal images (the 64x64 data only). "generated": the
+# generator's images of the training sketches and of their flipped drawings, as the app feeds it (the seventh's recipe,
+# reproduce_models.sh train7: --input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges), built here
+# from the 256x256 data and the generator file in GEN_MODELS [gpucarry/models_fifth] (reproduce_models.sh
+# gpucarry-v12 puts it there; carry it): the 1.4 GB sets cannot travel, so the first call spends about five minutes
+# of its ten on them (an estimate from this CPU's 34 ms per view and core) and a second call on the warm machine reuses them
+INPUTS=${INPUTS:-true}
+case "$INPUTS" in
+  true) DATA=${DATA:-data/g64}; SIZE=(--size 64) ;;
+  generated) DATA=${DATA:-data/g256}; SIZE=() ;;
+  *) echo "INPUTS must be true or generated, got '$INPUTS'" >&2; exit 2 ;;
+esac
+GEN_MODELS=${GEN_MODELS:-gpucarry/models_fifth}
 RUNS=${RUNS:-runs/gpu10}
 DEVICE=${DEVICE:-cuda}
 SHAPES=${SHAPES:-100}
@@ -80,9 +101,10 @@ elapsed() { echo $(($(date +%s) - T0)); }
 WORKERS=${WORKERS:-4}
 ARCH=${ARCH:-}  # predictor size flags of `train mesh` (the same in every call that continues the run)
 INIT_ARGS=(--init-mesh "$INIT"); [ "$INIT" = fresh ] && INIT_ARGS=()
+INPUT_ARGS=(); [ "$INPUTS" = generated ] && INPUT_ARGS=(--input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges)
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe, true normal images)
   # shellcheck disable=SC2086
-  echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" $ARCH --batch "$2" --lr-mesh "$3" \
+  echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" "${INPUT_ARGS[@]}" $ARCH --batch "$2" --lr-mesh "$3" \
     --mirror 0.5 --num-workers "$WORKERS" --val-every 0 --plot-every 0 --threads "$THREADS"
 }
 
@@ -97,13 +119,22 @@ echo "== data $(elapsed) s"
 if [ -f "$DATA/manifest.json" ] && [ -f "$DATA/.cache/mesh_arrays.bin" ]; then
   echo "$DATA: already built"
 else
-  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views 12 --elevations 0 15 30 45 --size 64 \
+  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views 12 --elevations 0 15 30 45 "${SIZE[@]}" \
     --workers "$(nproc)" --no-progress --out "$DATA" || exit 1
   python3 -c "
 import hashlib, json
 m = json.load(open('$DATA/manifest.json'))
 print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in m['shapes']]).encode()).hexdigest())
 from training.data.mesh_cache import open_mesh_cache; open_mesh_cache('$DATA', None, 'disk'); print('mesh cache built')" || exit 1
+fi
+if [ "$INPUTS" = generated ]; then
+  [ -f "$GEN_MODELS/generator.onnx" ] || { echo "INPUTS=generated needs $GEN_MODELS/generator.onnx (carry it)" >&2; exit 1; }
+  for set in normals16 normals16_mirror; do
+    echo "== generated $set $(elapsed) s (resumes: a second call finds it built)"
+    flags=(); [ "$set" = normals16_mirror ] && flags=(--mirror)
+    "${SM[@]}" data generated "$DATA" --models "$GEN_MODELS" --name "$set" "${flags[@]}" --workers "$(nproc)" --no-progress \
+      || exit 1
+  done
 fi
 if [ "$CAL" -gt 0 ]; then
   echo "== calibrate $(elapsed) s"
