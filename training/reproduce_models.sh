@@ -937,12 +937,12 @@ EOF
       EVAL_EXTRA=(--gt-normals)
       eval_against train "$OUT12/fit_gt_train" "$RUNS12/big12b" "$RUNS11/g11_b512b" "$RUNS10/v10_more" ;;
     cost-v12)  # what the larger predictor costs in the app's engine: every stage's latency, float32 on two threads, for
-      # v12_big's pair (export-v12) and the bundled pair (run it alone: it times)
+      # the larger predictor's pair (export-v12) and the bundled pair (run it alone: it times)
       mkdir -p "$OUT12"
       sketchmesh bench engine --models assets/models --threads 2 --variants fp32 --runs 50 --json "$OUT12/engine_bundled.json"
       sketchmesh bench engine --models "$OUT12/final/models_fp32" --threads 2 --variants fp32 --runs 50 \
-        --json "$OUT12/engine_v12_big.json" ;;
-    gallery-v12)  # v12_big's pair on one test shape per category (gallery-v2 into OUT12/final), to look at beside the ninth's
+        --json "$OUT12/engine_v12.json" ;;
+    gallery-v12)  # the larger predictor's pair (export-v12) on one test shape per category (gallery-v2 into OUT12/final), to look at beside the ninth's
       SHIP_MODELS=$OUT12/final/models_fp32 SHIP_OUT=$OUT12/final step gallery-v2 ;;
     predictor-v12-more2)  # v12_more trained on once more with the same recipe (V12M2_ITERS [7000], V12M2_MINUTES [35];
       # resumes): v12_more2, checked by val-v12-more2
@@ -977,8 +977,8 @@ EOF
       eval_against test "$OUT12/final/$EVAL_NAME" "$RUNS12/v12_big" "$RUNS10/v10_more" "$RUNS11/v11_cpu" ;;
     logs-v12)  # the larger predictor's runs: rate and wall time, the silhouette term and normal error
       log_summary "$RUNS12" big12 big12b v12_big v12_more ;;
-    export-v12)  # v12_big as float32 and int8, beside the generator file
-      export_pair "$RUNS12/v12_big" "$OUT12/final" "$OUT8/models_fifth/generator.onnx" ;;
+    export-v12)  # the larger predictor (PRED12 [v12_more]) as float32 and int8, beside the generator file
+      export_pair "$RUNS12/${PRED12:-v12_more}" "$OUT12/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v12)  # error against run time in the app's engine (run it alone: it times)
       tradeoff_of "w16-v12" "$OUT12/final" ;;
     compare-v12)  # the app's ONNX path: the nine bundled pairs so far (from git), v12_big's, retrieval, the template
