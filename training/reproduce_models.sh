@@ -981,7 +981,8 @@ EOF
       export_pair "$RUNS12/${PRED12:-v12_more}" "$OUT12/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v12)  # error against run time in the app's engine (run it alone: it times)
       tradeoff_of "w16-v12" "$OUT12/final" ;;
-    compare-v12)  # the app's ONNX path: the nine bundled pairs so far (from git), v12_big's, retrieval, the template
+    compare-v12)  # the app's ONNX path: the nine bundled pairs so far (from git), the larger predictor's (export-v12),
+      # retrieval, the template
       compare_pairs "$OUT12" 2e5204b cc51aaf 0c5ab8e 3a1ec5a 5b01fa5 d5aca6f bd55d3c 6e6475c 43b2613 ;;
     fresh-v12)  # the larger predictor (after fresh-v11: data-v2, the fifth generator's images; gpu_predictor.sh fresh's
       # two calls in GPU_FILES1 and GPU_FILES2): fetched, checked, fine-tuned, measured
