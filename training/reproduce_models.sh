@@ -976,7 +976,7 @@ EOF
       eval_case "$1"
       eval_against test "$OUT12/final/$EVAL_NAME" "$RUNS12/v12_big" "$RUNS10/v10_more" "$RUNS11/v11_cpu" ;;
     logs-v12)  # the larger predictor's runs: rate and wall time, the silhouette term and normal error
-      log_summary "$RUNS12" big12 big12b v12_big v12_more ;;
+      log_summary "$RUNS12" big12 big12b v12_big v12_more v12_more2 ;;
     export-v12)  # the larger predictor (PRED12 [v12_more]) as float32 and int8, beside the generator file
       export_pair "$RUNS12/${PRED12:-v12_more}" "$OUT12/final" "$OUT8/models_fifth/generator.onnx" ;;
     tradeoff-v12)  # error against run time in the app's engine (run it alone: it times)
