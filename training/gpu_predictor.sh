@@ -25,10 +25,10 @@
 #                                                 CPU: DEVICE=cpu SHAPES=2 CAL=8 END=170 WORKERS=0
 #                                                 SPECS="big 8 6e-4" ARCH=... then fetch-gpu-v12)
 #   INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024" SPECS="gen12 512 4e-4" \
-#     bash training/gpu_predictor.sh gpucarry/v12_big
+#     bash training/gpu_predictor.sh gpucarry/v12_more2
 #                                                 that predictor fine-tuned on the generator's images as the app feeds
 #                                                 it, at GPU speed (reproduce_models.sh gpucarry-v12; carry .whl,
-#                                                 gpucarry/v12_big and gpucarry/models_fifth: 44 MB); dry-run on this
+#                                                 gpucarry/v12_more2 and gpucarry/models_fifth: 44 MB); dry-run on this
 #                                                 CPU: DEVICE=cpu SHAPES=2 CAL=8 END=420 WORKERS=0 SPECS="gen 8 3e-4"
 #                                                 INPUTS=generated DATA=/tmp/g256 ARCH=... (data 42 s, each generated
 #                                                 set 35 s for 1,056 views on two busy cores: about 33 ms per view and
@@ -102,7 +102,7 @@ WORKERS=${WORKERS:-4}
 ARCH=${ARCH:-}  # predictor size flags of `train mesh` (the same in every call that continues the run)
 INIT_ARGS=(--init-mesh "$INIT"); [ "$INIT" = fresh ] && INIT_ARGS=()
 INPUT_ARGS=(); [ "$INPUTS" = generated ] && INPUT_ARGS=(--input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges)
-train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe, true normal images)
+train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe on INPUTS)
   # shellcheck disable=SC2086
   echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" "${INPUT_ARGS[@]}" $ARCH --batch "$2" --lr-mesh "$3" \
     --mirror 0.5 --num-workers "$WORKERS" --val-every 0 --plot-every 0 --threads "$THREADS"

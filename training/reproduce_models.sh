@@ -950,10 +950,10 @@ EOF
     val-v12-more2)  # v12_more2 against v12_more and the ninth, validation split, clean sketches
       eval_case eval
       eval_against val "$OUT12/more2/val_clean" "$RUNS12/v12_more2" "$RUNS12/v12_more" "$RUNS10/v10_more" ;;
-    gpucarry-v12)  # what the larger predictor's next GPU stage starts from: its newest run (PRED12 [v12_big]) in
+    gpucarry-v12)  # what the larger predictor's next GPU stage starts from: its newest run (PRED12 [v12_more2]) in
       # gpucarry/NAME, and the fifth pair's model folder in gpucarry/models_fifth (13 MB: `data generated` reads its
       # generator) for gpu_predictor.sh's INPUTS=generated
-      gpucarry "$RUNS12/${PRED12:-v12_big}"
+      gpucarry "$RUNS12/${PRED12:-v12_more2}"
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       mkdir -p gpucarry/models_fifth && cp "$OUT8"/models_fifth/*.onnx gpucarry/models_fifth/ ;;
     fetch-gpu-v12)  # what gpu_predictor.sh brought back for the larger predictor (GPU_FILES, once per call's folder)
