@@ -6,6 +6,8 @@ predictor, assemble, export, total) is timed over ``runs`` predictions with the 
 the variant's error against fp32 on the same sketches is measured: normal-image mean absolute
 error (in encoded [0, 1] units) and per-vertex distance mean / max (in units of the normalised
 shape, whose bounding box is 1 on its longest side). Error against run time, in one table.
+A variant with the suffix ``+mirror`` (e.g. ``fp32+mirror``) runs the engine with ``mirror_average``
+on (:mod:`engine.pipeline`): its error columns say how far averaging moves the mesh.
 
 Quantisation needs the ``onnx`` package (a dev/train extra); without it only fp32 is measured.
 """
@@ -30,6 +32,7 @@ from engine.models import model_paths, resolve_models_dir
 
 STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
 VARIANTS = C.PRECISION_VARIANTS
+MIRROR_SUFFIX = "+mirror"
 EXPORT_SUFFIX = ".glb"
 """Format timed by the ``export`` stage (the app's default export)."""
 
@@ -135,8 +138,8 @@ def _percentiles(ms: list[float]) -> tuple[float, float, float]:
 
 
 def bench_variant(folder: Path, sketches: list[Path], runs: int, warmup: int, threads: int | None, export_dir: Path,
-                  progress=None) -> tuple[dict[str, list[float]], list]:
-    """Time ``runs`` predictions (+ export) of one variant with the cache off.
+                  progress=None, mirror: bool = False) -> tuple[dict[str, list[float]], list]:
+    """Time ``runs`` predictions (+ export) of one variant with the cache off (``mirror``: mirror averaging on).
 
     Returns:
         (stage -> list of ms, first prediction of each sketch for the error comparison).
@@ -144,7 +147,7 @@ def bench_variant(folder: Path, sketches: list[Path], runs: int, warmup: int, th
     from engine.export import export_mesh
     from engine.pipeline import SketchEngine
 
-    engine = SketchEngine(folder, threads=threads, cache_size=0)
+    engine = SketchEngine(folder, threads=threads, cache_size=0, mirror_average=mirror)
     engine.load()
     reference = [engine.predict(s, want_normals=True) for s in sketches]
     for k in range(warmup):
@@ -193,9 +196,10 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
     from engine.models import default_threads
 
     variants = list(variants or VARIANTS)
-    bad = [v for v in variants if v not in VARIANTS]
+    bad = [v for v in variants if v.removesuffix(MIRROR_SUFFIX) not in VARIANTS]
     if bad:
-        raise SketchInputError(f"unknown variant {bad[0]!r}; choose from {', '.join(VARIANTS)}")
+        raise SketchInputError(f"unknown variant {bad[0]!r}; choose from {', '.join(VARIANTS)}, "
+                               f"each optionally with {MIRROR_SUFFIX}")
     if "fp32" not in variants:
         variants.insert(0, "fp32")  # the reference for the error columns
     src = resolve_models_dir(models_dir)
@@ -214,11 +218,12 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
         notes = []
         for variant in variants:
             try:
-                folder = make_variant(src, variant, tmp / "variants")
+                folder = make_variant(src, variant.removesuffix(MIRROR_SUFFIX), tmp / "variants")
             except MissingExtraError as exc:
                 notes.append(f"{variant}: skipped ({exc})")
                 continue
-            times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress)
+            times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress,
+                                       mirror=variant.endswith(MIRROR_SUFFIX))
             size = sum(p.stat().st_size for p in model_paths(folder))
             results[variant] = (times, ref, size)
         if progress is not None:
@@ -254,12 +259,12 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
 
 def format_table(records: list[dict]) -> str:
     """Plain-text table: one row per (variant, stage) with p50 / p95 and the variant's error."""
-    head = f"{'variant':<15} {'stage':<11} {'p50 ms':>9} {'p95 ms':>9}  {'normals MAE':>11} {'vert mean':>10} {'vert max':>10} {'MB':>7}"
+    head = f"{'variant':<22} {'stage':<11} {'p50 ms':>9} {'p95 ms':>9}  {'normals MAE':>11} {'vert mean':>10} {'vert max':>10} {'MB':>7}"
     lines = [head, "-" * len(head)]
     for r in records:
         e = r["error"]
         lines.append(
-            f"{r['variant']:<15} {r['stage']:<11} {r['p50_ms']:>9.3f} {r['p95_ms']:>9.3f}  "
+            f"{r['variant']:<22} {r['stage']:<11} {r['p50_ms']:>9.3f} {r['p95_ms']:>9.3f}  "
             f"{e['normals_mae']:>11.2e} {e['vertex_mean']:>10.2e} {e['vertex_max']:>10.2e} {r['model_bytes'] / 1e6:>7.2f}"
         )
     return "\n".join(lines)

@@ -50,6 +50,9 @@ def register(commands, bench) -> None:
     p.add_argument("--refine", type=int_in(0, MAX_REFINE_STEPS), default=0, metavar="N",
                    help="refine the mesh with N steps so its silhouette from the sketch's view matches the drawing's "
                    "outline (0 = off; see engine/refine.py)")
+    p.add_argument("--mirror-average", action="store_true",
+                   help="also predict from the drawing flipped left to right and average the two meshes (about twice "
+                   "the networks' time; see engine/pipeline.py)")
     p.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads (default: physical cores)")
     p.set_defaults(func=cmd_infer)
     one_line_errors(p)
@@ -67,7 +70,8 @@ def register(commands, bench) -> None:
     b.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads")
     b.add_argument("--sketch", action="append", metavar="IMAGE", help="sketch image(s) to use (default: bundled samples "
                    "or synthetic sketches)")
-    b.add_argument("--variants", default="fp32,int8-predictor,int8", help="comma list of fp32, int8-predictor, int8")
+    b.add_argument("--variants", default="fp32,int8-predictor,int8",
+                   help="comma list of fp32, int8-predictor, int8, each optionally with +mirror (mirror averaging on)")
     b.add_argument("--json", metavar="PATH", help="write the records as JSON")
     b.set_defaults(func=cmd_bench_engine)
     one_line_errors(b)
@@ -215,7 +219,7 @@ def cmd_infer(args: argparse.Namespace) -> int:
         if value:
             (check_output_dir if many else check_output_file)(value, flag)
 
-    sketch_engine = SketchEngine(args.models, threads=args.threads)
+    sketch_engine = SketchEngine(args.models, threads=args.threads, mirror_average=args.mirror_average)
     sketch_engine.load()  # model problems stop everything before any sketch is read
 
     progress = None

@@ -82,6 +82,46 @@ def icosphere(level: int = PAPER_LEVEL, radius: float = TEMPLATE_RADIUS) -> Mesh
     return Mesh(v * radius, f)
 
 
+@lru_cache(maxsize=8)
+def mirror_permutation(level: int = PAPER_LEVEL) -> np.ndarray:
+    """(V,) int64: ``perm[i]`` is the vertex at vertex i's mirror image in the plane x = 0.
+
+    The icosahedron and its edge midpoints are symmetric under x -> -x, so every template vertex
+    has a partner (itself on the plane); ``perm`` is an involution. Read-only.
+    """
+    v, _ = _icosphere_arrays(int(level))
+    keys = {tuple(k): i for i, k in enumerate(np.round(v, 9).tolist())}
+    mirrored = np.round(v * np.array([-1.0, 1.0, 1.0]), 9) + 0.0  # + 0.0: no -0.0 keys
+    try:
+        perm = np.array([keys[tuple(k)] for k in mirrored.tolist()], dtype=np.int64)
+    except KeyError as e:  # pragma: no cover - the construction is symmetric
+        raise AssertionError(f"icosphere level {level} is not mirror-symmetric") from e
+    perm.setflags(write=False)
+    return perm
+
+
+def mirror_average(plain: np.ndarray, flipped: np.ndarray) -> np.ndarray:
+    """Average a view-frame prediction with the one made from the left-right mirrored drawing.
+
+    Args:
+        plain: (..., V, 3) template vertices as predicted from the drawing.
+        flipped: (..., V, 3) as predicted from the drawing flipped left to right: a prediction of
+            the shape's mirror image, whose vertex j sits near template vertex j.
+
+    Returns:
+        (..., V, 3): ``(plain + M flipped[perm]) / 2`` with ``M = diag(-1, 1, 1)`` (the flip of the
+        image is x -> -x in the view frame, :mod:`engine.camera`) and ``perm`` the template's
+        :func:`mirror_permutation`, so each vertex is averaged with its mirror partner's estimate.
+    """
+    plain = np.asarray(plain)
+    flipped = np.asarray(flipped)
+    if plain.shape != flipped.shape or plain.ndim < 2 or plain.shape[-1] != 3:
+        raise ValueError(f"mirror_average needs two (..., V, 3) arrays of one shape, got {plain.shape} and {flipped.shape}")
+    level = level_for_vertex_count(plain.shape[-2])
+    back = flipped[..., mirror_permutation(level), :] * np.array([-1.0, 1.0, 1.0], dtype=flipped.dtype)
+    return (plain + back) / 2
+
+
 def level_for_vertex_count(num_vertices: int) -> int:
     """Inverse of the vertex count formula; raises ValueError for counts that are not an icosphere's."""
     for level in range(7):

@@ -8,6 +8,11 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
 4. ``predictor``   -> ``local_offset`` (1, V, 3), ``global_offset`` (1, 3);
 5. ``assemble``    template vertices + local + global -> :class:`engine.mesh.Mesh` in the view
    frame (:mod:`engine.camera`);
+
+   with ``mirror_average`` on, stages 2-5 run a second time on the drawing flipped left to right,
+   and the two meshes are averaged vertex by vertex, the second mirrored back
+   (:func:`engine.icosphere.mirror_average`): about twice stages 2-5's time, the normal image kept
+   is the plain drawing's;
 6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off.
 
@@ -33,7 +38,7 @@ import numpy as np
 
 from engine import contract as C
 from engine.errors import EmptySketchError, ModelError, SketchInputError
-from engine.icosphere import icosphere
+from engine.icosphere import icosphere, mirror_average
 from engine.mesh import Mesh
 from engine.models import LoadedModel, default_threads, load_generator, load_predictor, model_paths, resolve_models_dir
 from engine.preprocess import rasterize_strokes, sketch_raster_from_image
@@ -182,15 +187,18 @@ class SketchEngine:
         cache_size: predictions kept in the LRU cache (0 disables caching).
         refine_steps: refinement steps :meth:`predict` runs when not told (0 = off;
             :attr:`refine_steps` can be changed later, e.g. by the app's toggle).
+        mirror_average: also predict from the drawing flipped left to right and average the two
+            meshes (module doc); :attr:`mirror_average` can be changed later.
     """
 
     def __init__(self, models_dir: str | os.PathLike | None = None, *, threads: int | None = None,
-                 cache_size: int = DEFAULT_CACHE_SIZE, refine_steps: int = 0):
+                 cache_size: int = DEFAULT_CACHE_SIZE, refine_steps: int = 0, mirror_average: bool = False):
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise ValueError(f"threads must be a positive int or None, got {threads!r}")
         if not isinstance(cache_size, int) or cache_size < 0:
             raise ValueError(f"cache_size must be an int >= 0, got {cache_size!r}")
         self.refine_steps = refine_steps
+        self.mirror_average = mirror_average
         self._models_dir = resolve_models_dir(models_dir)
         self._threads = threads or default_threads()
         self._cache_size = cache_size
@@ -218,6 +226,17 @@ class SketchEngine:
     @refine_steps.setter
     def refine_steps(self, steps: int) -> None:
         self._refine_steps = _check_steps(steps)
+
+    @property
+    def mirror_average(self) -> bool:
+        """Whether :meth:`predict` averages with the mirrored drawing's prediction (module doc)."""
+        return self._mirror_average
+
+    @mirror_average.setter
+    def mirror_average(self, on: bool) -> None:
+        if not isinstance(on, (bool, np.bool_)):
+            raise ValueError(f"mirror_average must be a bool, got {on!r}")
+        self._mirror_average = bool(on)
 
     def load(self) -> None:
         """Create and validate both sessions now (otherwise done on the first prediction).
@@ -254,28 +273,39 @@ class SketchEngine:
         with self._cache_lock:
             self._cache.clear()
 
-    def _run_models(self, raster: np.ndarray, timings: dict[str, float]) -> _Entry:
+    def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool) -> _Entry:
         gen, pred = self._generator, self._predictor
-        x = raster[None, None].astype(np.float32)
-        with self._run_lock:
+        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble"), 0.0)
+        meshes, kept = [], None
+        for flip in (False, True) if mirror else (False,):
+            x = (raster[:, ::-1] if flip else raster)[None, None].astype(np.float32)
+            with self._run_lock:
+                t0 = time.perf_counter()
+                (normals,) = gen.session.run([C.GENERATOR_OUTPUT], {gen.input_name: x})
+                t1 = time.perf_counter()
+                expected = (1, 3, C.SKETCH_SIZE, C.SKETCH_SIZE)
+                if normals.shape != expected:
+                    raise ModelError(f"{gen.path}: generator output must be {expected}, got {normals.shape}")
+                if not np.all(np.isfinite(normals)):
+                    raise ModelError(f"{gen.path}: the generator produced NaN or inf (broken model?)")
+                normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
+                small = downsample_normals(normals)
+                t2 = time.perf_counter()
+                local, glob = pred.session.run(pred.output_names, {pred.input_name: small})
+                t3 = time.perf_counter()
+            meshes.append(assemble_mesh(local, glob, pred.template_level, pred.template_radius))
+            t4 = time.perf_counter()
+            kept = normals if kept is None else kept
+            for name, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+                stages[name] += dt * 1e3
+        mesh = meshes[0]
+        if mirror:
             t0 = time.perf_counter()
-            (normals,) = gen.session.run([C.GENERATOR_OUTPUT], {gen.input_name: x})
-            t1 = time.perf_counter()
-            expected = (1, 3, C.SKETCH_SIZE, C.SKETCH_SIZE)
-            if normals.shape != expected:
-                raise ModelError(f"{gen.path}: generator output must be {expected}, got {normals.shape}")
-            if not np.all(np.isfinite(normals)):
-                raise ModelError(f"{gen.path}: the generator produced NaN or inf (broken model?)")
-            normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
-            small = downsample_normals(normals)
-            t2 = time.perf_counter()
-            local, glob = pred.session.run(pred.output_names, {pred.input_name: small})
-            t3 = time.perf_counter()
-        mesh = assemble_mesh(local, glob, pred.template_level, pred.template_radius)
-        t4 = time.perf_counter()
-        normals.setflags(write=False)
-        timings.update(generator=(t1 - t0) * 1e3, downsample=(t2 - t1) * 1e3, predictor=(t3 - t2) * 1e3, assemble=(t4 - t3) * 1e3)
-        return _Entry(mesh, normals)
+            mesh = Mesh(mirror_average(meshes[0].vertices, meshes[1].vertices).astype(np.float32), mesh.faces)
+            stages["assemble"] += (time.perf_counter() - t0) * 1e3
+        kept.setflags(write=False)
+        timings.update(stages)
+        return _Entry(mesh, kept)
 
     def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:
         """Predict a mesh from a sketch.
@@ -298,7 +328,8 @@ class SketchEngine:
         raster = to_raster(sketch)
         raster = np.array(raster, dtype=np.float32)
         raster.setflags(write=False)
-        key = raster_key(raster)
+        mirror = self._mirror_average
+        key = raster_key(raster) + (":mirror" if mirror else "")
         timings = {"preprocess": (time.perf_counter() - t0) * 1e3}
         self.load()
         entry = None
@@ -311,7 +342,7 @@ class SketchEngine:
         if cached:
             timings.update({s: 0.0 for s in STAGES[1:]})
         else:
-            entry = self._run_models(raster, timings)
+            entry = self._run_models(raster, timings, mirror)
             if self._cache_size:
                 with self._cache_lock:
                     self._cache[key] = entry

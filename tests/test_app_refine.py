@@ -1,4 +1,5 @@
-"""The app's "Refine to outline" toggle drives the engine's refinement and shows its time (issue 17)."""
+"""The app's "Refine to outline" toggle drives the engine's refinement and shows its time (issue 17); the
+"Mirror average" toggle drives the engine's mirror averaging."""
 
 from __future__ import annotations
 
@@ -6,7 +7,10 @@ import pytest
 from gui_helpers import draw_stroke, gui_isolation, line_points
 from onnx_fixtures import write_fixture_models
 
-from app.window import REFINE_BY_DEFAULT, MainWindow
+import numpy as np
+
+from app.window import MIRROR_BY_DEFAULT, REFINE_BY_DEFAULT, MainWindow
+from engine.pipeline import SketchEngine
 from engine.refine import DEFAULT_STEPS
 
 WAIT_MS = 20000
@@ -38,6 +42,37 @@ def test_refine_toggle_sets_the_engine_steps_and_the_status_bar_shows_the_time(q
         with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
             act.trigger()  # off: the sketch is predicted again, without refinement
         assert w.engine.refine_steps == 0 and w.last_prediction.timings_ms["refine"] == 0.0
+    finally:
+        w.force_close()
+        w.deleteLater()
+
+
+def test_mirror_toggle_sets_the_engine_and_predicts_again(qtbot, tmp_path):
+    models = write_fixture_models(tmp_path / "models")
+    w = MainWindow(models_dir=models, autosave_dir=tmp_path / "autosave", debounce_ms=10)
+    try:
+        w.resize(1000, 620)
+        w.show()
+        qtbot.waitExposed(w)
+        act = w.actions["mirror"]
+        assert act.isCheckable() and act.isChecked() == MIRROR_BY_DEFAULT
+        assert w.engine.mirror_average == MIRROR_BY_DEFAULT
+        if w.actions["refine"].isChecked():
+            w.actions["refine"].trigger()  # compare the networks' meshes alone
+        with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+            draw_stroke(w.canvas, line_points(60, 80, 300, 300))
+        meshes = {}
+        for _ in range(2):
+            meshes[w.engine.mirror_average] = w.last_prediction.mesh.vertices.copy()
+            with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+                act.trigger()
+            assert w.engine.mirror_average == act.isChecked()
+        # each mode's mesh is the engine's own for the same drawing, and the two differ
+        raster = w.last_prediction.sketch
+        for on, vertices in meshes.items():
+            ref = SketchEngine(models, threads=1, cache_size=0, mirror_average=on).predict(raster).mesh.vertices
+            np.testing.assert_allclose(vertices, ref, atol=1e-5)
+        assert np.abs(meshes[True] - meshes[False]).max() > 1e-3
     finally:
         w.force_close()
         w.deleteLater()

@@ -112,6 +112,55 @@ def test_cache_hit_recomputes_nothing(models):
     assert not nocache.predict(_strokes()).cached and not nocache.predict(_strokes()).cached
 
 
+def _mirrored_back(vertices: np.ndarray, level: int = 3) -> np.ndarray:
+    """A flipped drawing's mesh mirrored back (x negated) and re-indexed by nearest template vertex, by brute force."""
+    t = icosphere(level).vertices.astype(np.float64)
+    d = np.linalg.norm(t[:, None, :] - (t * [-1.0, 1.0, 1.0])[None, :, :], axis=-1)
+    partner = d.argmin(axis=1)  # partner[i]: the template vertex whose mirror image is vertex i
+    assert np.all(d[np.arange(len(t)), partner] < 1e-6)
+    return (vertices * [-1.0, 1.0, 1.0])[partner]
+
+
+def test_mirror_average_matches_an_independent_pipeline(models):
+    strokes = _strokes(7.0)
+    raster = rasterize_strokes(strokes)
+    eng = SketchEngine(models, threads=1, mirror_average=True)
+    pred = eng.predict(strokes, want_normals=True)
+    plain, normals = _reference_prediction(models, raster)
+    flipped, _ = _reference_prediction(models, np.ascontiguousarray(raster[:, ::-1]))
+    expected = (plain + _mirrored_back(flipped)) / 2
+    np.testing.assert_allclose(pred.mesh.vertices, expected, atol=ORT_ATOL)
+    assert np.abs(expected - plain).max() > 1e-3  # the fixture is not mirror-equivariant: averaging moved the mesh
+    np.testing.assert_allclose(pred.normals, normals, atol=ORT_ATOL)  # the normal image shown is the plain drawing's
+    np.testing.assert_array_equal(pred.mesh.faces, icosphere(3).faces)
+    # the cache keeps the two modes apart
+    eng.mirror_average = False
+    off = eng.predict(strokes)
+    assert not off.cached
+    np.testing.assert_allclose(off.mesh.vertices, plain, atol=ORT_ATOL)
+    eng.mirror_average = True
+    again = eng.predict(strokes)
+    assert again.cached
+    np.testing.assert_array_equal(again.mesh.vertices, pred.mesh.vertices)
+    with pytest.raises(ValueError, match="mirror_average"):
+        eng.mirror_average = "yes"
+    with pytest.raises(ValueError, match="mirror_average"):
+        SketchEngine(models, mirror_average=1)
+
+
+def test_cli_infer_mirror_average(tmp_path, models, sketch_png):
+    out_plain, out_mirror = tmp_path / "plain.obj", tmp_path / "mirror.obj"
+    for out, extra in ((out_plain, []), (out_mirror, ["--mirror-average"])):
+        r = _cli("infer", sketch_png, "-o", out, "--models", models, "--threads", 1, *extra, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    import trimesh
+
+    mesh = trimesh.load(out_mirror, process=False)
+    ref = SketchEngine(models, threads=1, mirror_average=True).predict(sketch_png).mesh
+    np.testing.assert_allclose(mesh.vertices, ref.vertices, atol=1e-5)
+    assert np.abs(mesh.vertices - trimesh.load(out_plain, process=False).vertices).max() > 1e-3
+
+
 def test_path_raster_and_strokes_inputs_agree(engine, tmp_path):
     img = np.full((300, 400), 255, np.uint8)
     cv2.circle(img, (200, 150), 100, 0, 4)
@@ -359,6 +408,21 @@ def test_bench_engine_on_fixture_models(tmp_path, models, sketch_png, capsys):
     assert int8["model_bytes"] < fp32["model_bytes"]
     table = capsys.readouterr().out
     assert "int8-predictor" in table and "p95 ms" in table
+
+
+def test_bench_engine_mirror_variant(tmp_path, models, sketch_png):
+    from engine.bench import run_engine_bench
+
+    out = tmp_path / "bench.json"
+    assert run_engine_bench(models, runs=1, warmup=0, threads=1, sketches=[str(sketch_png)],
+                            variants=["fp32", "fp32+mirror"], json_path=str(out)) == 0
+    records = {(r["variant"], r["stage"]): r for r in json.loads(out.read_text())}
+    mirror = records[("fp32+mirror", "total")]
+    assert mirror["error"]["normals_mae"] == 0.0  # the normal image kept is the plain drawing's
+    assert mirror["error"]["vertex_mean"] > 0  # the averaged mesh moved
+    assert mirror["model_bytes"] == records[("fp32", "total")]["model_bytes"]
+    with pytest.raises(SketchInputError, match="mirror"):
+        run_engine_bench(models, runs=1, variants=["fp16+mirror"])
 
 
 def test_bench_engine_is_registered():

@@ -18,7 +18,7 @@ from engine.camera import (
     relative_camera,
     view_camera,
 )
-from engine.icosphere import icosphere, level_for_vertex_count
+from engine.icosphere import icosphere, level_for_vertex_count, mirror_average, mirror_permutation
 from engine.mesh import Mesh, adjacent_face_pairs, face_normals, unique_edges, vertex_normals
 
 # ---- mesh value type -------------------------------------------------------------------
@@ -88,6 +88,36 @@ def test_icosphere_is_deterministic_and_prefix_stable():
 def test_icosphere_rejects_bad_level(bad):
     with pytest.raises(ValueError):
         icosphere(bad)
+
+
+@pytest.mark.parametrize("level", [0, 1, 2, 3, 4])
+def test_mirror_permutation_is_the_templates_reflection(level):
+    """perm[i] sits at vertex i's mirror image; it is an involution fixing exactly the vertices on x = 0, and the
+    reflection maps the triangulation onto itself (faces map to faces)."""
+    m = icosphere(level)
+    v = m.vertices.astype(np.float64)
+    perm = mirror_permutation(level)
+    np.testing.assert_allclose(v[perm], v * [-1.0, 1.0, 1.0], atol=1e-7)
+    np.testing.assert_array_equal(perm[perm], np.arange(len(v)))
+    np.testing.assert_array_equal(np.flatnonzero(perm == np.arange(len(v))), np.flatnonzero(np.abs(v[:, 0]) < 1e-7))
+    assert {tuple(sorted(f)) for f in perm[m.faces].tolist()} == {tuple(sorted(f)) for f in m.faces.tolist()}
+    with pytest.raises(ValueError):
+        perm[0] = 1  # shared and cached: read-only
+
+
+def test_mirror_average_by_hand():
+    t = icosphere(2).vertices.astype(np.float64)
+    # a flipped prediction shifted by (0.1, 0.2, 0) is, mirrored back, the template shifted by (-0.1, 0.2, 0)
+    out = mirror_average(t, t + [0.1, 0.2, 0.0])
+    np.testing.assert_allclose(out, t + [-0.05, 0.1, 0.0], atol=1e-7)
+    # a prediction of the mirror image that agrees with the plain one leaves it unchanged, batched too
+    rng = np.random.default_rng(0)
+    plain = t + rng.normal(0.0, 0.05, size=(2, *t.shape))
+    agreeing = (plain * [-1.0, 1.0, 1.0])[:, mirror_permutation(2)]
+    np.testing.assert_allclose(mirror_average(plain, agreeing), plain, atol=1e-12)
+    for a, b in ((t, t[:-1]), (t[:, :2], t[:, :2]), (t[:100], t[:100])):
+        with pytest.raises(ValueError):
+            mirror_average(a, b)
 
 
 # ---- cameras ----------------------------------------------------------------------------

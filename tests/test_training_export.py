@@ -222,12 +222,15 @@ def test_bench_tradeoff_reports_every_combination(run_dir, exported, tmp_path, c
 
     out = tmp_path / "tradeoff"
     rc = main(["bench", "tradeoff", "--data", str(run_dir.parent / "data"), "--variant", f"tiny={exported}",
-               "--precisions", "fp32", "int8-predictor", "--levels", "1", "2", "3", "--bundled", "tiny",
+               "--precisions", "fp32", "int8-predictor", "fp32+mirror", "--levels", "1", "2", "3", "--bundled", "tiny",
                "--threads", "1", "--quiet", "--out", str(out)])
     assert rc == 0
     records = json.loads((out / "tradeoff.json").read_text())
     assert [(r["precision"], r["level"], r["vertices"]) for r in records] == [
-        (p, lv, n) for p in ("fp32", "int8-predictor") for lv, n in ((1, 42), (2, 162), (3, 642))]
+        (p, lv, n) for p in ("fp32", "int8-predictor", "fp32+mirror") for lv, n in ((1, 42), (2, 162), (3, 642))]
+    plain, mirror = (next(r for r in records if r["precision"] == p and r["level"] == 2) for p in ("fp32", "fp32+mirror"))
+    assert mirror["chamfer_l1"] != plain["chamfer_l1"]  # averaging with the flipped drawing's mesh moved it
+    assert mirror["model_mb"] == plain["model_mb"]
     for r in records:
         assert 0.0 <= r["voxel_iou"] <= 1.0 and np.isfinite(r["chamfer_l1"]) and r["latency_ms_p50"] > 0
     assert (out / "tradeoff.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

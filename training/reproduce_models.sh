@@ -49,6 +49,10 @@
 #   against the ninth's GPU stage (val-gpu-v12), fine-tuned here on the generator's images (predictor-v12), chosen on
 #   the validation split (val-*-v12) against the ninth and the ninth fine-tuned 10,000 iterations more, measured
 #   (eval-*-v12 logs-v12) (fresh-v12); all-v12 exports, times and ships it.
+# Mirror averaging (mirror-v13, into OUT13 [out/v13]; needs runs/v10/v10_more and runs/v12/v12_more2): every mesh
+#   averaged with the one predicted from the drawing flipped left to right, checked on the validation split
+#   (val-*-mirror-v13, val624-mirror-v13) before the test split (eval-*-mirror-v13), timed in the app's engine
+#   (cost-v13) and scored in the app's own path (compare-v13).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -103,6 +107,7 @@ RUNS11=${RUNS11:-runs/v11}
 OUT11=${OUT11:-out/v11}
 RUNS12=${RUNS12:-runs/v12}
 OUT12=${OUT12:-out/v12}
+OUT13=${OUT13:-out/v13}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -993,6 +998,31 @@ EOF
     all-v12)  # the larger predictor's pair (after fresh-v12): exported, timed, shipped
       SHIP_MODELS=$OUT12/final/models_fp32; SHIP_OUT=$OUT12/final; CENTRES=()
       for s in export-v12 tradeoff-v12 gallery-v2 compare-v12 ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+    val-mirror-v13|val-strong-mirror-v13|val-side-mirror-v13|val-gt-mirror-v13)  # mirror averaging (the engine's
+      # mirror_average) on the ninth and the larger predictor (v12_more2): plain and +mirror in one table, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT13/val_${EVAL_NAME#eval_}" "$RUNS10/v10_more" "$RUNS12/v12_more2" ;;
+    val624-mirror-v13)  # the ninth plain and +mirror on 624 validation sketches, clean (a finer check of val-mirror-v13)
+      EVAL_EXTRA=(--mirror-average)
+      SAMPLES2=624 eval_against val "$OUT13/val624_clean" "$RUNS10/v10_more" ;;
+    eval-mirror-v13|eval-strong-mirror-v13|eval-side-mirror-v13|eval-gt-mirror-v13)  # the ninth plain and +mirror, test
+      # split (after the choice on the validation split, OUT13/choice.txt)
+      eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
+      eval_against test "$OUT13/$EVAL_NAME" "$RUNS10/v10_more" ;;
+    cost-v13)  # what mirror averaging costs in the app's engine: every stage, bundled pair, float32 plain and +mirror on
+      # two threads (run it alone: it times)
+      mkdir -p "$OUT13"
+      sketchmesh bench engine --models assets/models --threads 2 --variants fp32,fp32+mirror --runs 50 \
+        --json "$OUT13/engine_mirror.json" ;;
+    compare-v13)  # the bundled pair plain and +mirror in the app's own path (39 test shapes x 4 drawings, compare-v10-more's
+      # set), with retrieval and the template sphere
+      sketchmesh eval --models assets/models --mirror-average --data "$DATA2" --views 4 --max-samples 39 --threads 2 \
+        --out "$OUT13/compare" ;;
+    mirror-v13)  # mirror averaging, validation split first, then the test split and its cost
+      for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
+               eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13; do
+        step "$s"
+      done ;;
     val-gpu-v11)  # the tenth's GPU stage on the validation split's true normal images: its end (g11_b512b) and the
       # first call's run (g11_b512) against the ninth predictor it started from
       sketchmesh eval "$RUNS11/g11_b512b" --data "$DATA2" --split val --gt-normals --baseline-run "$RUNS10/v10_more" \
@@ -1090,7 +1120,7 @@ EOF
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
-      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 fit-v11 fit-gt-v11 predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more compare-v11-more control-v10-more eval-control-v10-more eval-control-strong-v10-more eval-control-side-v10-more eval-control-gt-v10-more logs-control-v10-more predictor-v12-more val-v12-more val-strong-v12-more val-side-v12-more val-gt-v12-more predictor-v12-more2 val-v12-more2 fit-gt-v12 cost-v12 gallery-v12 gpucarry-v12 fetch-gpu-v12 val-gpu-v12 predictor-v12 val-v12 val-strong-v12 val-side-v12 val-gt-v12 eval-v12 eval-strong-v12 eval-side-v12 eval-gt-v12 logs-v12 export-v12 tradeoff-v12 compare-v12 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v11-more fresh-v12 all-v12 all-v1)" >&2
+      echo "reproduce_models.sh: unknown step '$1' (data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery docs clamp-trial overfit variants data-v2 normals-v2 normals8-v2 mesh-v2 silhouette-v2 joint-v2 export-v2 eval-v2 eval-strong-v2 eval-side-v2 eval-gt-v2 tradeoff-v2 gallery-v2 compare-v2 ship-v2 refine-v2 docs-v2 fetch-gpu predictor-on-generated-v2 ceiling-v2 generated-v4 predictor-v4 predictor-v4-more eval-v4 eval-strong-v4 eval-side-v4 eval-gt-v4 export-v4 tradeoff-v4 compare-v4 generated-v5 predictor-v5 eval-v5 eval-strong-v5 eval-side-v5 eval-gt-v5 eval-train-v5 logs-v5 eval-v6 eval-strong-v6 eval-side-v6 eval-gt-v6 eval-train-v6 compare-v6 refine-v6 thin-v6 variety-v6 fit-v6 predictor-v6 logs-v6 eval-deep-v6 eval-deep-strong-v6 eval-deep-side-v6 eval-deep-gt-v6 eval-deep-train-v6 full-interior-v6 full-interior-x5-v6 eval-interior-v6 eval-interior-strong-v6 eval-interior-side-v6 eval-interior-gt-v6 gallery-interior-v6 predictor-v7 val-v7 eval-v7 eval-strong-v7 eval-side-v7 eval-gt-v7 eval-train-v7 export-v7 tradeoff-v7 compare-v7 control-v7 logs-v7 eval-control-v7 eval-control-strong-v7 eval-control-side-v7 eval-control-gt-v7 models-fifth-v8 generated-v8 import-v8 predictor-v8 predictor-v8-more val-v8-more logs-v8 mirror-check-v8 val-v8 eval-v8 eval-strong-v8 eval-side-v8 eval-gt-v8 eval-v8b eval-strong-v8b eval-side-v8b eval-gt-v8b export-v8 tradeoff-v8 compare-v8 generated-mirror-v9 predictor-v9 val-v9 val-strong-v9 val-side-v9 val-gt-v9 eval-v9 eval-strong-v9 eval-side-v9 eval-gt-v9 logs-v9 export-v9 tradeoff-v9 compare-v9 control-v9 eval-control-v9 eval-control-strong-v9 eval-control-side-v9 eval-control-gt-v9 gpucarry-v10 fetch-gpu-v10 val-gpu-v10 predictor-v10 val-v10 val-strong-v10 val-side-v10 val-gt-v10 eval-v10 eval-strong-v10 eval-side-v10 eval-gt-v10 logs-v10 export-v10 tradeoff-v10 compare-v10 predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more compare-v10-more gpucarry-v11 fetch-gpu-v11 val-gpu-v11 predictor-v11 val-v11 val-strong-v11 val-side-v11 val-gt-v11 eval-v11 eval-strong-v11 eval-side-v11 eval-gt-v11 logs-v11 export-v11 tradeoff-v11 compare-v11 fit-v11 fit-gt-v11 predictor-v11-more val-v11-more val-strong-v11-more val-side-v11-more val-gt-v11-more eval-v11-more eval-strong-v11-more eval-side-v11-more eval-gt-v11-more export-v11-more tradeoff-v11-more compare-v11-more control-v10-more eval-control-v10-more eval-control-strong-v10-more eval-control-side-v10-more eval-control-gt-v10-more logs-control-v10-more predictor-v12-more val-v12-more val-strong-v12-more val-side-v12-more val-gt-v12-more predictor-v12-more2 val-v12-more2 fit-gt-v12 cost-v12 gallery-v12 gpucarry-v12 fetch-gpu-v12 val-gpu-v12 predictor-v12 val-v12 val-strong-v12 val-side-v12 val-gt-v12 eval-v12 eval-strong-v12 eval-side-v12 eval-gt-v12 logs-v12 export-v12 tradeoff-v12 compare-v12 all all-gpu all-v4 trials-v5 remeasure-v6 deep-v6 interior-v6 all-v7 fresh-v8 all-v8 fresh-v9 all-v9 fresh-v10 all-v10 all-v10-more fresh-v11 all-v11 all-v11-more fresh-v12 all-v12 val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 mirror-v13 all-v1)" >&2
       exit 2 ;;
   esac
 }

@@ -227,7 +227,9 @@ def register(commands, bench) -> None:
     t.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split is used)")
     t.add_argument("--variant", action="append", required=True, metavar="LABEL=DIR",
                    help="a folder of exported models and its label (repeat)")
-    t.add_argument("--precisions", nargs="+", default=["fp32"], choices=PRECISION_VARIANTS)
+    t.add_argument("--precisions", nargs="+", default=["fp32"],
+                   choices=[*PRECISION_VARIANTS, *(p + "+mirror" for p in PRECISION_VARIANTS)],
+                   help="fp32, int8-predictor, int8, each optionally with +mirror (the engine's mirror averaging on)")
     t.add_argument("--levels", type=int_in(0, 6), nargs="+", default=None, metavar="L",
                    help="template levels to report (default: the predictor's own)")
     t.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="at most this many test sketches (0: all)")

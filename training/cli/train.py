@@ -357,6 +357,9 @@ def register(commands, bench) -> None:
     p.add_argument("--baseline-run", metavar="RUN", action="append", default=[],
                    help="also evaluate this run (e.g. the silhouette-only lambda_n = 0 run); repeatable")
     p.add_argument("--no-retrieval", action="store_true", help="skip the nearest-training-sample retrieval baseline")
+    p.add_argument("--mirror-average", action="store_true",
+                   help="also score every run (or model folder) as 'NAME +mirror': each mesh averaged with the one "
+                   "predicted from the drawing flipped left to right (the app's Mirror average), at twice the cost")
     p.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
                    help="evaluate at most this many test samples (with --models: meshes), evenly spaced (0: all)")
     p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)

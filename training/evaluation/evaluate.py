@@ -22,6 +22,9 @@ Baselines in the same table:
   the retrieved shape is placed as it looked in its own view).
 * any ``--baseline-run RUN`` (e.g. a silhouette-only run trained with ``lambda_n = 0``): evaluated
   the same way; a baseline without a generator borrows the main run's generator.
+* with ``--mirror-average``, every run also as ``NAME +mirror``: each prediction averaged with the one
+  made from the drawing flipped left to right, mirrored back (the engine's ``mirror_average``;
+  :func:`engine.icosphere.mirror_average`), at twice the networks' cost.
 
 Outputs: a markdown table (printed and written to ``OUT/eval_<split>.md``), JSON (``--json PATH``
 and ``OUT/eval_<split>.json``) and a bar chart ``OUT/eval_<split>.png``. Every method's row carries its
@@ -42,7 +45,9 @@ import torch
 
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes
+from engine.icosphere import mirror_average
 from engine.mesh import Mesh
+from training.data.mirror import mirror_normal_image
 from training.evaluation.metrics import ELEVATION_TOL, world_vertices
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
@@ -70,25 +75,37 @@ class _Method:
 
 
 class _RunMethod(_Method):
-    def __init__(self, name: str, generator, predictor, cfg: TrainConfig, gt_normals: bool) -> None:
+    """A run's networks; with ``mirror`` each prediction is averaged with the one from the mirrored input
+    (:func:`engine.icosphere.mirror_average`, the engine's ``mirror_average``)."""
+
+    def __init__(self, name: str, generator, predictor, cfg: TrainConfig, gt_normals: bool, mirror: bool = False) -> None:
         super().__init__(name)
         self.generator, self.predictor, self.cfg, self.gt_normals = generator, predictor, cfg, gt_normals
+        self.mirror = mirror
 
     @torch.no_grad()
-    def normals64(self, batch: dict) -> torch.Tensor:
+    def normals64(self, batch: dict, flip: bool = False) -> torch.Tensor:
         if self.gt_normals:
-            return batch["normals64"].float()
-        return downsample_normals(self.generator(batch["sketch"].float()), self.predictor.input_size)
+            n = batch["normals64"].float()
+            # a true normal image mirrored exactly, its silhouette as coverage (training.data.mirror)
+            return mirror_normal_image(n, batch["silhouette64"].float()) if flip else n
+        sketch = batch["sketch"].float()
+        return downsample_normals(self.generator(sketch.flip(-1) if flip else sketch), self.predictor.input_size)
+
+    @torch.no_grad()
+    def _vertices(self, batch: dict, flip: bool) -> np.ndarray:
+        local, glob = self.predictor(self.normals64(batch, flip))
+        return self.predictor.vertices(local, glob).numpy().astype(np.float64)
 
     @torch.no_grad()
     def predict(self, batch: dict) -> tuple[np.ndarray, np.ndarray | None]:
         t0 = time.perf_counter()
-        n64 = self.normals64(batch)
-        local, glob = self.predictor(n64)
-        verts = self.predictor.vertices(local, glob)
+        verts = self._vertices(batch, False)
+        if self.mirror:
+            verts = mirror_average(verts, self._vertices(batch, True))
         self.seconds += time.perf_counter() - t0
         self.count += verts.shape[0]
-        return verts.numpy().astype(np.float64), None
+        return verts, None
 
 
 class _RetrievalMethod(_Method):
@@ -202,6 +219,7 @@ def evaluate(
     test_set=None,
     train_set=None,
     elevation: float | None = None,
+    mirror: bool = False,
 ) -> dict:
     """Evaluate a run (and baselines) on a split; see the module docstring.
 
@@ -221,6 +239,7 @@ def evaluate(
             cell centres inside only (``--voxel-centres``, the earlier tables' measure).
         test_set, train_set: datasets to use instead of reading ``data_dir`` (tests).
         elevation: only the samples rendered at this elevation in degrees (None: all).
+        mirror: also score every run as ``NAME +mirror`` (module doc).
 
     Returns:
         ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
@@ -259,6 +278,9 @@ def evaluate(
         if any(m.name == name for m in methods):
             name = str(b)
         methods.append(_RunMethod(name, bgen, bpred, bcfg, gt_normals))
+    if mirror:
+        methods += [_RunMethod(f"{m.name} +mirror", m.generator, m.predictor, m.cfg, gt_normals, mirror=True)
+                    for m in list(methods)]
     if retrieval:
         if train_set is None:
             # only the 64x64 normal images and cameras, from the dataset's array cache (not every shape file)
@@ -336,6 +358,7 @@ def evaluate(
         "gt_normals": bool(gt_normals),
         "elevation": None if elevation is None else float(elevation),
         "augment_strength": float(augment_strength),
+        "mirror_average": bool(mirror),
         "voxel_resolution": int(voxel_resolution),
         "voxel_surface": bool(voxel_surface),
         "seconds": time.perf_counter() - t_start,
@@ -445,7 +468,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         args.run, args.data, args.split, gt_normals=args.gt_normals, generator_run=args.generator_run,
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
-        elevation=args.elevation, voxel_surface=not args.voxel_centres,
+        elevation=args.elevation, voxel_surface=not args.voxel_centres, mirror=args.mirror_average,
     )
     table = markdown_table(result)
     print(table)

@@ -100,13 +100,13 @@ def resolve_model_folders(specs) -> list[tuple[str, Path]]:
     return out
 
 
-def open_engines(folders: list[tuple[str, Path]], threads: int | None = None) -> list:
+def open_engines(folders: list[tuple[str, Path]], threads: int | None = None, mirror_average: bool = False) -> list:
     """One loaded :class:`engine.pipeline.SketchEngine` per folder (cache off); ModelError if unusable."""
     from engine.pipeline import SketchEngine
 
     engines = []
     for _, path in folders:
-        engine = SketchEngine(path, threads=threads, cache_size=0)
+        engine = SketchEngine(path, threads=threads, cache_size=0, mirror_average=mirror_average)
         engine.load()
         engines.append(engine)
     return engines
@@ -452,6 +452,9 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     folders = resolve_model_folders(model_specs)
     threads = args.threads or None
     engines = open_engines(folders, threads)
+    if getattr(args, "mirror_average", False):  # every folder again, averaged with the mirrored drawing's mesh
+        engines += open_engines(folders, threads, mirror_average=True)
+        folders = folders + [(f"{label} +mirror", path) for label, path in folders]
     check_data(args.data, args.split)
     if args.retrieval_data and not args.no_retrieval:
         check_data(args.retrieval_data, "train", what="--retrieval-data", model_input=False)

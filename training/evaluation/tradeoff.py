@@ -11,7 +11,9 @@ Axes of the trade-off:
 
 * model folders (``--variant LABEL=DIR``): generator widths, predictor sizes;
 * precision (``--precisions fp32 int8-predictor int8``): dynamic int8 quantisation of the
-  predictor only, or of both networks (:func:`engine.bench.make_variant`);
+  predictor only, or of both networks (:func:`engine.bench.make_variant`); each may carry the suffix
+  ``+mirror`` (``fp32+mirror``): the engine's mirror averaging on (:mod:`engine.pipeline`), both
+  networks run a second time on the drawing flipped left to right;
 * template level (``--levels 2 3 4``): the predictor is trained on one icosphere level L. Icosphere
   levels nest (level L-1's vertices are the first vertices of level L, see :mod:`engine.icosphere`),
   so a coarser mesh keeps the predicted positions of those vertices with level L-1's faces, and a
@@ -32,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.bench import MIRROR_SUFFIX
 from engine.contract import PRECISION_VARIANTS
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
@@ -113,8 +116,9 @@ def run_tradeoff(
     if not variants:
         raise TradeoffError("give at least one --variant LABEL=DIR")
     for p in precisions:
-        if p not in PRECISION_VARIANTS:
-            raise TradeoffError(f"unknown precision {p!r}; choose from {', '.join(PRECISION_VARIANTS)}")
+        if p.removesuffix(MIRROR_SUFFIX) not in PRECISION_VARIANTS:
+            raise TradeoffError(f"unknown precision {p!r}; choose from {', '.join(PRECISION_VARIANTS)}, "
+                                f"each optionally with {MIRROR_SUFFIX}")
     test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
     if len(test) == 0:
         raise TradeoffError(f"the test split of {data_dir} is empty")
@@ -135,8 +139,8 @@ def run_tradeoff(
     try:
         combos = [(label, folder, prec) for label, folder in variants for prec in precisions]
         for label, folder, prec in combos:
-            vfolder = make_variant(folder, prec, work / label)
-            engine = SketchEngine(vfolder, threads=threads, cache_size=0)
+            vfolder = make_variant(folder, prec.removesuffix(MIRROR_SUFFIX), work / label)
+            engine = SketchEngine(vfolder, threads=threads, cache_size=0, mirror_average=prec.endswith(MIRROR_SUFFIX))
             engine.load()
             model_level = int(engine.model_info()["template_level"])
             model_mb = sum(f.stat().st_size for f in vfolder.glob("*.onnx")) / 2**20
@@ -203,7 +207,7 @@ def _is_bundled(record: dict, bundled: str) -> bool:
 
 
 def plot(records: list[dict], path: str | Path, bundled: str | None = None) -> None:
-    """Mean voxel IoU against p50 latency, one marker per precision, one colour per model folder."""
+    """Mean voxel IoU against p50 latency, one marker per precision (hollow: +mirror), one colour per model folder."""
     import io
 
     import matplotlib
@@ -216,7 +220,12 @@ def plot(records: list[dict], path: str | Path, bundled: str | None = None) -> N
     colours = {lab: plt.get_cmap("tab10")(i % 10) for i, lab in enumerate(labels)}
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)
     for r in records:
-        ax.scatter(r["latency_ms_p50"], r["voxel_iou"], marker=markers[r["precision"]], color=colours[r["label"]], s=40)
+        marker = markers[r["precision"].removesuffix(MIRROR_SUFFIX)]
+        if r["precision"].endswith(MIRROR_SUFFIX):
+            ax.scatter(r["latency_ms_p50"], r["voxel_iou"], marker=marker, facecolor="none", edgecolor=colours[r["label"]],
+                       linewidths=1.4, s=40)
+        else:
+            ax.scatter(r["latency_ms_p50"], r["voxel_iou"], marker=marker, color=colours[r["label"]], s=40)
         ax.annotate(f"L{r['level']}", (r["latency_ms_p50"], r["voxel_iou"]), textcoords="offset points",
                     xytext=(4, 3), fontsize=7)
         if bundled and _is_bundled(r, bundled):
@@ -227,6 +236,8 @@ def plot(records: list[dict], path: str | Path, bundled: str | None = None) -> N
     for prec, m in markers.items():
         if any(r["precision"] == prec for r in records):
             ax.scatter([], [], color="grey", marker=m, label=prec)
+        if any(r["precision"] == prec + MIRROR_SUFFIX for r in records):
+            ax.scatter([], [], facecolor="none", edgecolor="grey", marker=m, label=prec + MIRROR_SUFFIX)
     if bundled:
         ax.scatter([], [], marker="*", s=120, facecolor="none", edgecolor="red", label="bundled")
     threads = records[0]["threads"] if records else "?"
