@@ -54,3 +54,9 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
     for rec in records:
         assert 0.0 <= rec["sil_iou_target"] <= 1.0 and 0.0 <= rec["voxel_iou"] <= 1.0 and rec["samples"] == 2
     assert (out / "refine.png").stat().st_size > 0 and "| clean | 2 |" in (out / "refine.md").read_text()
+    # with the app's mirror averaging the unrefined mesh is another one (the fixture is not mirror-equivariant)
+    assert main(["bench", "refine", "--data", str(data), "--out", str(tmp_path / "mirror"), "--models", str(models),
+                 "--steps", "0", "--styles", "clean", "--max-samples", "2", "--quiet", "--mirror-average",
+                 "--no-intersections"]) == 0
+    mirrored = json.loads((tmp_path / "mirror" / "refine.json").read_text())["records"][0]
+    assert mirrored["sil_iou_target"] != records[0]["sil_iou_target"]

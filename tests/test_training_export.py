@@ -258,6 +258,12 @@ def test_gallery_writes_one_row_per_category(run_dir, exported, tmp_path, capsys
     assert rc == 0, capsys.readouterr().err
     w, h = Image.open(out).size
     assert w == 1000 and h == 200 * 2  # 5 columns x 2 test categories of 2 inches at 100 dpi
+    mirrored = tmp_path / "gallery_mirror.png"
+    rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(mirrored),
+               "--azimuth", "0", "--turn", "15", "--size", "48", "--threads", "1", "--mirror-average"])
+    assert rc == 0 and Image.open(mirrored).size == (w, h)
+    diff = np.abs(np.asarray(Image.open(mirrored), np.float64) - np.asarray(Image.open(out), np.float64))
+    assert 0 < diff.mean() < 0.1 * 255  # the sketches and normal images agree; the meshes moved
     rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(exported), "-o", str(out),
                "--categories", "nosuch"])
     assert rc != 0 and "no test shapes" in capsys.readouterr().err

@@ -214,6 +214,8 @@ def register(commands, bench) -> None:
     p.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="test sketches per style (0: all)")
     p.add_argument("--threads", type=int_in(1, 256), default=2, help="ONNX Runtime threads (default 2)")
     p.add_argument("--no-intersections", action="store_true", help="skip counting self-intersections (faster)")
+    p.add_argument("--mirror-average", action="store_true",
+                   help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
     p.add_argument("--quiet", action="store_true")
     voxel_centres_flag(p)
     p.set_defaults(func=_cmd_bench_refine)
@@ -259,5 +261,7 @@ def register(commands, bench) -> None:
     g.add_argument("--turn", type=float_in(0.0, 360.0), default=90.0, metavar="DEG",
                    help="second view: about this many degrees of azimuth further (default 90)")
     g.add_argument("--size", type=int_in(32, 1024), default=160, help="render size of the mesh columns")
+    g.add_argument("--mirror-average", action="store_true",
+                   help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
     g.add_argument("--threads", type=positive_int, default=2)
     g.set_defaults(func=_cmd_gallery)
