@@ -129,7 +129,7 @@ def test_silhouette_gradient_reaches_only_silhouette_edge_vertices(level):
 
 def test_face_adjacency_matches_a_dict_of_edges_and_marks_boundaries():
     m = icosphere(2)
-    faces = np.asarray(m.faces)[1:]  # one face removed: its three edges become boundary edges
+    faces = np.array(m.faces)[1:]  # a writable copy; one face removed: its three edges become boundary edges
     nb, nbe = R.face_adjacency(torch.from_numpy(faces))
     owners: dict = {}
     for fid, tri in enumerate(faces.tolist()):
