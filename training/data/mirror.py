@@ -101,6 +101,30 @@ def mirror_batch(batch: dict, flags: torch.Tensor) -> dict:
     return out
 
 
+def counterpart_inputs(before: dict, after: dict, flags: torch.Tensor) -> torch.Tensor:
+    """(B, 3, H, W) each item's mirror counterpart of the input it reads after :func:`mirror_batch` (``mirror_consistency``).
+
+    ``before`` / ``after``: the batch before and after ``mirror_batch(before, flags)``. An unflagged item's
+    counterpart is the generator's image of its flipped drawing (``input64_mirror``) or, without it, its input
+    mirrored; a flagged item's is its unmirrored input. A run that reads true normal images gets them mirrored
+    exactly (the silhouette as coverage), which is also the flagged items' unmirrored image.
+    """
+    if "input64" not in after:
+        return mirror_normal_image(after["normals64"], after["silhouette64"])
+    plain = before["input64"]
+    exact = before.get("input64_mirror")
+    flipped = exact.to(plain.dtype) if exact is not None else mirror_normal_image(plain)
+    return torch.where(flags.to(torch.bool).view(-1, 1, 1, 1), plain, flipped)
+
+
+def mirror_consistency(vertices: torch.Tensor, counterpart: torch.Tensor, perm: torch.Tensor) -> torch.Tensor:
+    """Mean squared distance between (B, V, 3) view-frame predictions and the (B, V, 3) predictions of their mirror
+    counterparts mirrored back (x negated, vertex i taking its reflection ``perm[i]``'s place; the torch twin of
+    :func:`engine.icosphere.mirror_average`). 0 for a mirror-equivariant predictor."""
+    back = counterpart[:, perm] * _MIRROR.to(device=counterpart.device, dtype=counterpart.dtype)
+    return ((vertices - back) ** 2).sum(-1).mean()
+
+
 def mirror_points(input_camera: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
     """(N, 3) world points reflected in the plane of ``input_camera`` (16,): ``S p + s`` (module doc)."""
     dt = points.dtype

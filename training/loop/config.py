@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,6 +107,12 @@ class TrainConfig:
             instead of its generated image flipped (which only approximates it); with ``input_share``
             below 1, an item that reads the true image reads it mirrored exactly (its silhouette as
             coverage). "" (default): off.
+        mirror_consistency: with ``mirror``: weight of a term asking the predictor to answer an
+            item's input and its mirror counterpart (the generator's image of the flipped drawing
+            with ``mirror_inputs``, else the input mirrored) with the same mesh: the mean squared
+            distance between the prediction and the counterpart's prediction mirrored back, vertex i
+            against its reflection's vertex (:func:`engine.icosphere.mirror_average`); the app's
+            mirror averaging learned into one pass. 2D only (no true shape is read). 0 (default): off.
         sketch_size: generator resolution (256). render_size: mesh-loss rendering resolution (64).
         delta: gradient strength of the rasterizer's approximate gradient (Eq. 1).
         edge_range: reach of that gradient along rows and columns in pixels: 1 (the default) uses
@@ -177,6 +184,7 @@ class TrainConfig:
     input_share: float = 1.0
     mirror: float = 0.0
     mirror_inputs: str = ""
+    mirror_consistency: float = 0.0
     sketch_size: int = 256
     render_size: int = 64
     delta: float = 1.0
@@ -227,6 +235,10 @@ class TrainConfig:
             problems.append(f"mirror (mirrored training items) is for mesh mode only, not {self.mode!r}")
         elif self.mirror and self.supervision == "3d":
             problems.append("mirror does not apply to supervision '3d' (its targets are the unmirrored meshes)")
+        if not (math.isfinite(float(self.mirror_consistency)) and float(self.mirror_consistency) >= 0):
+            problems.append(f"mirror_consistency must be finite and >= 0, got {self.mirror_consistency}")
+        elif self.mirror_consistency and not (self.mirror and self.mode == "mesh" and self.supervision == "2d"):
+            problems.append("mirror_consistency needs mesh mode, mirror > 0 and supervision '2d'")
         if self.mirror_inputs and not (self.mirror and self.input_normals):
             problems.append("mirror_inputs (exact inputs of mirrored items) needs mirror > 0 and input_normals")
         if not 0 < float(self.input_share) <= 1:

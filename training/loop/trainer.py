@@ -59,9 +59,10 @@ from torch import nn
 
 from engine.errors import ModelError, SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
-from engine.icosphere import TEMPLATE_RADIUS, icosphere
+from engine.icosphere import TEMPLATE_RADIUS, icosphere, mirror_permutation
 from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
 from training.loop.config import TrainConfig, code_version
+from training.data.mirror import mirror_consistency
 from training.model.losses import chamfer_loss, sample_mesh_points
 from training.model.networks import (
     NormalGenerator,
@@ -368,6 +369,7 @@ class Trainer:
             self.mesh_loss = MeshLoss(template, LossWeights(cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m),
                                       normal_region=cfg.normal_region).to(self.device)
             self.faces = torch.from_numpy(np.array(template.faces)).to(self.device)
+            self._mirror_perm = torch.from_numpy(np.array(mirror_permutation(cfg.template_level))).to(self.device)
 
         self.iteration = 0
         self.train_seconds = 0.0  # wall time in run(), over every invocation, up to the newest checkpoint (saved in it)
@@ -515,6 +517,8 @@ class Trainer:
             cols += ["mesh_normal", "mesh_silhouette", "mesh_edge", "mesh_smoothness", "mesh_total"]
             if self.cfg.supervision == "3d":
                 cols.insert(-1, "mesh_chamfer")
+            if self.cfg.mirror_consistency > 0:
+                cols.insert(-1, "mesh_mirror")
         return cols
 
     def _prepare_log(self) -> None:
@@ -617,8 +621,16 @@ class Trainer:
                 inp = downsample_normals(fake, cfg.render_size)
             else:  # the generated image where the run reads one (input_normals), else the true one
                 inp = batch.get("input64", batch["normals64"])
-            local, glob = P(inp)
-            verts = _unwrap(P).vertices(local, glob)
+            other = batch.get("input64_counterpart") if cfg.mirror_consistency > 0 else None
+            if other is None:
+                local, glob = P(inp)
+                verts = _unwrap(P).vertices(local, glob)
+                mirror_term = None
+            else:  # one forward pass over both, so batch norm sees one batch
+                local, glob = P(torch.cat([inp, other.to(inp.dtype)]))
+                both = _unwrap(P).vertices(local, glob)
+                verts, verts_other = both[: inp.shape[0]], both[inp.shape[0]:]
+                mirror_term = mirror_consistency(verts, verts_other, self._mirror_perm)
             if cfg.supervision == "3d" and bool(torch.isfinite(verts.detach()).all()):
                 gen = torch.Generator().manual_seed(_step_seed(cfg.seed, self.info.rank, it) + 2)
                 chamfer = chamfer_loss(sample_mesh_points(verts, self.faces, SURFACE_POINTS, gen),
@@ -636,6 +648,9 @@ class Trainer:
             else:  # the rasterizer rejects NaN vertices: poison the step so the guard skips it
                 mesh_total = verts.sum() * float("nan")
                 log = {"predicted_vertices_nonfinite": float("nan")}
+            if mirror_term is not None:
+                mesh_total = mesh_total + cfg.mirror_consistency * mirror_term
+                terms["mesh_mirror"] = mirror_term.detach()
             for k in ("normal", "silhouette", "edge", "smoothness"):
                 terms[f"mesh_{k}"] = torch.tensor(log.get(k, float("nan") if "predicted_vertices_nonfinite" in log else 0.0))
             terms["mesh_total"] = mesh_total
@@ -658,7 +673,12 @@ class Trainer:
 
             gen = torch.Generator().manual_seed(_step_seed(self.cfg.seed, self.info.rank, it) + 3)
             flags = torch.rand(batch["camera"].shape[0], generator=gen) < self.cfg.mirror
+            before = batch
             batch = mirror_batch(batch, flags.to(batch["camera"].device))
+            if self.cfg.mirror_consistency > 0:
+                from training.data.mirror import counterpart_inputs
+
+                batch = dict(batch, input64_counterpart=counterpart_inputs(before, batch, flags.to(batch["camera"].device)))
         buffers = {k: {n: b.detach().clone() for n, b in m.named_buffers()} for k, m in self.models.items()}
         for o in self.optimizers.values():
             o.zero_grad(set_to_none=True)
