@@ -53,7 +53,9 @@
 #   averaged with the one predicted from the drawing flipped left to right, checked on the validation split
 #   (val-*-mirror-v13, val624-mirror-v13) before the test split (eval-*-mirror-v13), timed in the app's engine
 #   (cost-v13), scored in the app's own path (compare-v13), against run time (tradeoff-v13), under refinement
-#   (refine-v13), pictured (gallery-v13) and put in the README (docs-v13).
+#   (refine-v13), pictured (gallery-v13) and put in the README (docs-v13). Mirror averaging learned (into RUNS13
+#   [runs/v13]): the ninth trained on with and without the mirror-consistency term at equal time (predictor-v13
+#   logs-v13), compared plain and averaged on the validation split (val-*-v13).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
