@@ -77,10 +77,10 @@ def handify(path, size, rng, spacing=4.0):
 def main(argv: list[str]) -> int:
     out = Path(argv[0] if argv else "assets/samples")
     out.mkdir(parents=True, exist_ok=True)
+    from gui_helpers import FakeEngine, draw_stroke
     from PySide6.QtWidgets import QApplication
 
     from app.window import MainWindow
-    from gui_helpers import FakeEngine, draw_stroke
 
     app = QApplication.instance() or QApplication(["draw_samples"])
     rng = np.random.default_rng(7)

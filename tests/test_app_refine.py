@@ -3,11 +3,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from gui_helpers import draw_stroke, gui_isolation, line_points
 from onnx_fixtures import write_fixture_models
-
-import numpy as np
 
 from app.window import MIRROR_BY_DEFAULT, REFINE_BY_DEFAULT, MainWindow
 from engine.pipeline import SketchEngine
@@ -22,57 +21,60 @@ def dialogs(qapp, tmp_path, monkeypatch):
         yield recorder
 
 
-def test_refine_toggle_sets_the_engine_steps_and_the_status_bar_shows_the_time(qtbot, tmp_path):
-    models = write_fixture_models(tmp_path / "models")
+@pytest.fixture
+def models(tmp_path):
+    return write_fixture_models(tmp_path / "models")
+
+
+@pytest.fixture
+def window(qtbot, tmp_path, models):
+    """A shown main window on the fixture models, closed afterwards."""
     w = MainWindow(models_dir=models, autosave_dir=tmp_path / "autosave", debounce_ms=10)
     try:
         w.resize(1000, 620)
         w.show()
         qtbot.waitExposed(w)
-        act = w.actions["refine"]
-        assert act.isCheckable() and act.isChecked() == REFINE_BY_DEFAULT
-        assert w.engine.refine_steps == (DEFAULT_STEPS if REFINE_BY_DEFAULT else 0)
-        with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-            draw_stroke(w.canvas, line_points(60, 80, 300, 300))
-        if not act.isChecked():
-            with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-                act.trigger()
-        assert w.engine.refine_steps == DEFAULT_STEPS
-        assert "refine" in w.timing_label.text()
-        with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-            act.trigger()  # off: the sketch is predicted again, without refinement
-        assert w.engine.refine_steps == 0 and w.last_prediction.timings_ms["refine"] == 0.0
+        yield w
     finally:
         w.force_close()
         w.deleteLater()
 
 
-def test_mirror_toggle_sets_the_engine_and_predicts_again(qtbot, tmp_path):
-    models = write_fixture_models(tmp_path / "models")
-    w = MainWindow(models_dir=models, autosave_dir=tmp_path / "autosave", debounce_ms=10)
-    try:
-        w.resize(1000, 620)
-        w.show()
-        qtbot.waitExposed(w)
-        act = w.actions["mirror"]
-        assert act.isCheckable() and act.isChecked() == MIRROR_BY_DEFAULT
-        assert w.engine.mirror_average == MIRROR_BY_DEFAULT
-        if w.actions["refine"].isChecked():
-            w.actions["refine"].trigger()  # compare the networks' meshes alone
+def test_refine_toggle_sets_the_engine_steps_and_the_status_bar_shows_the_time(qtbot, window):
+    w = window
+    act = w.actions["refine"]
+    assert act.isCheckable() and act.isChecked() == REFINE_BY_DEFAULT
+    assert w.engine.refine_steps == (DEFAULT_STEPS if REFINE_BY_DEFAULT else 0)
+    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+        draw_stroke(w.canvas, line_points(60, 80, 300, 300))
+    if not act.isChecked():
         with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-            draw_stroke(w.canvas, line_points(60, 80, 300, 300))
-        meshes = {}
-        for _ in range(2):
-            meshes[w.engine.mirror_average] = w.last_prediction.mesh.vertices.copy()
-            with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-                act.trigger()
-            assert w.engine.mirror_average == act.isChecked()
-        # each mode's mesh is the engine's own for the same drawing, and the two differ
-        raster = w.last_prediction.sketch
-        for on, vertices in meshes.items():
-            ref = SketchEngine(models, threads=1, cache_size=0, mirror_average=on).predict(raster).mesh.vertices
-            np.testing.assert_allclose(vertices, ref, atol=1e-5)
-        assert np.abs(meshes[True] - meshes[False]).max() > 1e-3
-    finally:
-        w.force_close()
-        w.deleteLater()
+            act.trigger()
+    assert w.engine.refine_steps == DEFAULT_STEPS
+    assert "refine" in w.timing_label.text()
+    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+        act.trigger()  # off: the sketch is predicted again, without refinement
+    assert w.engine.refine_steps == 0 and w.last_prediction.timings_ms["refine"] == 0.0
+
+
+def test_mirror_toggle_sets_the_engine_and_predicts_again(qtbot, window, models):
+    w = window
+    act = w.actions["mirror"]
+    assert act.isCheckable() and act.isChecked() == MIRROR_BY_DEFAULT
+    assert w.engine.mirror_average == MIRROR_BY_DEFAULT
+    if w.actions["refine"].isChecked():
+        w.actions["refine"].trigger()  # compare the networks' meshes alone
+    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+        draw_stroke(w.canvas, line_points(60, 80, 300, 300))
+    meshes = {}
+    for _ in range(2):
+        meshes[w.engine.mirror_average] = w.last_prediction.mesh.vertices.copy()
+        with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+            act.trigger()
+        assert w.engine.mirror_average == act.isChecked()
+    # each mode's mesh is the engine's own for the same drawing, and the two differ
+    raster = w.last_prediction.sketch
+    for on, vertices in meshes.items():
+        ref = SketchEngine(models, threads=1, cache_size=0, mirror_average=on).predict(raster).mesh.vertices
+        np.testing.assert_allclose(vertices, ref, atol=1e-5)
+    assert np.abs(meshes[True] - meshes[False]).max() > 1e-3

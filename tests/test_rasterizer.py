@@ -137,7 +137,7 @@ def test_face_adjacency_matches_a_dict_of_edges_and_marks_boundaries():
             a, b = tri[(k + 1) % 3], tri[(k + 2) % 3]
             owners.setdefault((min(a, b), max(a, b)), []).append((fid, k))
     boundary = 0
-    for (a, b), fs in owners.items():
+    for fs in owners.values():
         if len(fs) == 1:
             boundary += 1
             f, k = fs[0]

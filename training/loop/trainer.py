@@ -60,9 +60,9 @@ from torch import nn
 from engine.errors import ModelError, SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere, mirror_permutation
+from training.data.mirror import mirror_consistency
 from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
 from training.loop.config import TrainConfig, code_version
-from training.data.mirror import mirror_consistency
 from training.model.losses import chamfer_loss, sample_mesh_points
 from training.model.networks import (
     NormalGenerator,
