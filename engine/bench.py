@@ -7,7 +7,8 @@ the variant's error against fp32 on the same sketches is measured: normal-image 
 error (in encoded [0, 1] units) and per-vertex distance mean / max (in units of the normalised
 shape, whose bounding box is 1 on its longest side). Error against run time, in one table.
 A variant with the suffix ``+mirror`` (e.g. ``fp32+mirror``) runs the engine with ``mirror_average``
-on (:mod:`engine.pipeline`): its error columns say how far averaging moves the mesh.
+on (:mod:`engine.pipeline`): against fp32, ``fp32+mirror``'s error columns say how far averaging
+moves the mesh; an int8 ``+mirror`` variant's mix that with the quantisation's.
 
 Quantisation needs the ``onnx`` package (a dev/train extra); without it only fp32 is measured.
 """
@@ -216,9 +217,12 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
             progress = tqdm(total=runs * len(variants), unit="run", file=sys.stderr, leave=False, disable=None)
         results = {}
         notes = []
+        folders: dict[str, Path] = {}  # one quantised folder per precision, shared by its +mirror variant
         for variant in variants:
+            base = variant.removesuffix(MIRROR_SUFFIX)
             try:
-                folder = make_variant(src, variant.removesuffix(MIRROR_SUFFIX), tmp / "variants")
+                folder = folders.get(base) or make_variant(src, base, tmp / "variants")
+                folders[base] = folder
             except MissingExtraError as exc:
                 notes.append(f"{variant}: skipped ({exc})")
                 continue

@@ -89,6 +89,8 @@ def mirror_permutation(level: int = PAPER_LEVEL) -> np.ndarray:
     The icosahedron and its edge midpoints are symmetric under x -> -x, so every template vertex
     has a partner (itself on the plane); ``perm`` is an involution. Read-only.
     """
+    if not isinstance(level, (int, np.integer)) or not 0 <= level <= 6:
+        raise ValueError(f"icosphere level must be an integer in [0, 6], got {level!r}")
     v, _ = _icosphere_arrays(int(level))
     keys = {tuple(k): i for i, k in enumerate(np.round(v, 9).tolist())}
     mirrored = np.round(v * np.array([-1.0, 1.0, 1.0]), 9) + 0.0  # + 0.0: no -0.0 keys

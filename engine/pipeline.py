@@ -11,14 +11,14 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
 
    with ``mirror_average`` on, stages 2-5 run a second time on the drawing flipped left to right,
    and the two meshes are averaged vertex by vertex, the second mirrored back
-   (:func:`engine.icosphere.mirror_average`): about twice stages 2-5's time, the normal image kept
-   is the plain drawing's;
+   (:func:`engine.icosphere.mirror_average`): each stage's time is the sum of its two runs (the
+   averaging counts in ``assemble``), the normal image kept is the plain drawing's;
 6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off.
 
 Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
-cache keyed on a hash of the preprocessed raster skips stages 2-5 when the sketch has not
-changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
+cache keyed on a hash of the preprocessed raster and the mirror setting skips stages 2-5 when
+neither has changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
 thread-safe and never touches Qt.
 """
 
@@ -69,6 +69,7 @@ class Prediction:
         cached: True when stages 2-5 came from the cache.
         warnings: things the user should know about the result (a refinement that fell back to
             the unrefined mesh says why); empty when all went as asked.
+        mirror_average: whether the mesh is the average with the flipped drawing's.
     """
 
     mesh: Mesh
@@ -77,6 +78,7 @@ class Prediction:
     timings_ms: dict[str, float]
     cached: bool
     warnings: tuple[str, ...] = ()
+    mirror_average: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -317,7 +319,8 @@ class SketchEngine:
             refine: refinement steps (:mod:`engine.refine`; 0 = off); None uses :attr:`refine_steps`.
 
         Returns:
-            A :class:`Prediction`; ``cached`` is True when the same raster was seen recently.
+            A :class:`Prediction`; ``cached`` is True when the same raster was seen recently with
+            the same :attr:`mirror_average` setting.
 
         Raises:
             SketchInputError / EmptySketchError: unusable or blank sketch.
@@ -369,4 +372,5 @@ class SketchEngine:
             timings_ms={s: float(timings[s]) for s in STAGES},
             cached=cached,
             warnings=warnings,
+            mirror_average=mirror,
         )

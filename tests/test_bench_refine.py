@@ -59,4 +59,5 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
                  "--steps", "0", "--styles", "clean", "--max-samples", "2", "--quiet", "--mirror-average",
                  "--no-intersections"]) == 0
     mirrored = json.loads((tmp_path / "mirror" / "refine.json").read_text())["records"][0]
-    assert mirrored["sil_iou_target"] != records[0]["sil_iou_target"]
+    assert abs(mirrored["sil_iou_target"] - records[0]["sil_iou_target"]) > 1e-4 and mirrored["mirror_average"]
+    assert not records[0]["mirror_average"]

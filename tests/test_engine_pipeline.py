@@ -24,6 +24,7 @@ from onnx_fixtures import (
 from engine import contract as C
 from engine.errors import EmptySketchError, ModelError, SketchInputError
 from engine.icosphere import icosphere
+from engine.mesh import Mesh
 from engine.models import default_threads, load_generator, load_predictor, physical_cores
 from engine.pipeline import STAGES, SketchEngine, assemble_mesh, downsample_normals
 from engine.preprocess import rasterize_strokes, sketch_raster_from_image
@@ -146,6 +147,22 @@ def test_mirror_average_matches_an_independent_pipeline(models):
         eng.mirror_average = "yes"
     with pytest.raises(ValueError, match="mirror_average"):
         SketchEngine(models, mirror_average=1)
+
+
+def test_a_flipped_drawing_is_the_x_negated_mesh_seen_by_the_sketch_camera():
+    """What mirror averaging rests on, seen by the engine's own camera and rasterizer: an asymmetric mesh negated in x
+    (the view frame's mirror) and framed like a sketch looks exactly like the original's image flipped left to right."""
+    from engine.refine import pixel_coords, render_silhouette, sketch_camera
+
+    t = icosphere(2)
+    v = t.vertices.astype(np.float64)
+    v = v * [1.0, 0.7, 0.9] + np.where(v[:, :1] > 0.1, [[0.35, 0.1, 0.0]], 0.0)  # a bump on the right only
+    plain = Mesh(v, t.faces)
+    negated = Mesh(v * [-1.0, 1.0, 1.0], t.faces[:, ::-1])
+    sil = [render_silhouette(pixel_coords(m.vertices, sketch_camera(m), 128)[0], m.faces, 128) > 0
+           for m in (plain, negated)]
+    assert sil[0].sum() > 2000 and not np.array_equal(sil[0], sil[0][:, ::-1])  # asymmetric, so the test can fail
+    assert np.mean(sil[1] != sil[0][:, ::-1]) < 1e-3
 
 
 def test_cli_infer_mirror_average(tmp_path, models, sketch_png):

@@ -235,3 +235,22 @@ def test_elevation_keeps_only_the_views_at_that_elevation(world, capsys):
                  "--quiet", "--threads", "1", "--out", str(world["root"] / "none")]) != 0
     err = capsys.readouterr().err.strip()
     assert "elevation 45" in err and len(err.splitlines()) == 1
+
+
+def test_mirror_average_adds_a_row_per_folder_scored_as_the_engine_with_it_on(world, tmp_path):
+    """`eval --models DIR --mirror-average`: 'LABEL +mirror' is the engine with mirror averaging on (same sessions)."""
+    out = tmp_path / "m.json"
+    assert main(["eval", "--models", str(world["tiny"]), "--mirror-average", "--data", str(world["data"]), "--split",
+                 "all", "--no-retrieval", "--threads", "1", "--quiet", "--out", str(tmp_path), "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    row = next(r for r in res["rows"] if r["shape_id"] == "brick")
+    view = row["per_view"][0]
+    with _shape_file(world, "brick") as z:
+        sketch = z["sketch"][view["view"]].astype(np.float32) / 255.0
+        rot = z["cameras"][view["view"]][:9].reshape(3, 3)
+        gt = Mesh(z["vertices"], z["faces"])
+    for label, on in (("tiny", False), ("tiny +mirror", True)):
+        pred = SketchEngine(world["tiny"], threads=1, cache_size=0, mirror_average=on).predict(sketch)
+        assert pred.mirror_average is on
+        world_verts = (rot.T @ np.asarray(pred.mesh.vertices, np.float64).T).T
+        assert view["iou"][label] == pytest.approx(voxel_iou(Mesh(world_verts, pred.mesh.faces), gt, 32), abs=1e-12)

@@ -103,6 +103,9 @@ def test_mirror_permutation_is_the_templates_reflection(level):
     assert {tuple(sorted(f)) for f in perm[m.faces].tolist()} == {tuple(sorted(f)) for f in m.faces.tolist()}
     with pytest.raises(ValueError):
         perm[0] = 1  # shared and cached: read-only
+    for bad in (-1, 7, 2.5):
+        with pytest.raises(ValueError, match="level"):
+            mirror_permutation(bad)
 
 
 def test_mirror_average_by_hand():

@@ -253,6 +253,37 @@ def test_training_with_mirror_consistency_logs_the_term_and_lowers_it(data_dir, 
             w = pred.vertices(*pred(mirror_normal_image(batch["normals64"].float(), batch["silhouette64"].float())))
         gaps[name] = float(mirror_consistency(v, w, perm))
     assert gaps["with"] < 0.25 * gaps["without"], gaps
-    for bad in (dict(mirror=0.0), dict(supervision="3d", mirror=0.0), dict(mirror_consistency=-1.0)):
+    for bad in (dict(mirror=0.0), dict(supervision="3d"), dict(mirror_consistency=-1.0)):
         with pytest.raises(ValueError, match="mirror_consistency"):
             TrainConfig(mode="mesh", **{"mirror_consistency": 1.0, "mirror": 0.5, **bad})
+
+
+def test_eval_mirror_average_flips_the_drawing_for_the_generator(data_dir, tmp_path):
+    """From sketches: the +mirror method's second pass reads the generator's image of the drawing flipped left to
+    right (done here with numpy), and it reuses the plain method's pass on the same batch."""
+    from engine.icosphere import icosphere
+    from training.evaluation.evaluate import _load_models, _RunMethod
+    from training.model.networks import downsample_normals
+
+    tiny = dict(mode="mesh", data_dir=str(data_dir), batch=2, predictor_channels=8, predictor_hidden=32,
+                predictor_latent=16, template_level=2, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0,
+                plot_every=0, device="cpu", extra_views=1, iters=2, out_dir=str(tmp_path / "run"))
+    Trainer(TrainConfig(**tiny), progress=False).run()
+    cfg, _, pred = _load_models(tmp_path / "run", False)
+    torch.manual_seed(0)
+    gen = torch.nn.Sequential(torch.nn.Conv2d(1, 3, 5, padding=2), torch.nn.Sigmoid()).eval()  # not mirror-equivariant
+    sketch = torch.rand(2, 1, 64, 64)
+    batch = {"sketch": sketch}
+    plain = _RunMethod("r", gen, pred, cfg, gt_normals=False)
+    mirror = _RunMethod("r +mirror", gen, pred, cfg, gt_normals=False, mirror=True, plain=plain)
+    p, _ = plain.predict(batch)
+    got, _ = mirror.predict(batch)
+
+    flipped = torch.from_numpy(sketch.numpy()[..., ::-1].copy())
+    with torch.no_grad():
+        other = pred.vertices(*pred(downsample_normals(gen(flipped), pred.input_size))).numpy()
+    t = icosphere(2).vertices.astype(np.float64)
+    partner = np.linalg.norm(t[:, None] - (t * [-1, 1, 1])[None], axis=-1).argmin(axis=1)
+    np.testing.assert_allclose(got, (p + (other * [-1, 1, 1])[:, partner]) / 2, atol=1e-5)
+    assert np.abs(got - p).max() > 1e-5
+    assert mirror.seconds >= plain.seconds and mirror.count == plain.count == 2

@@ -328,6 +328,13 @@ def world_vertices(view_vertices: np.ndarray, camera: np.ndarray) -> np.ndarray:
     return np.asarray(view_vertices, dtype=np.float64) @ r
 
 
+def finite_mean(values) -> float:
+    """Mean of the finite values; NaN (without numpy's empty-slice warning) when none is (a measure left out)."""
+    v = np.asarray(values, np.float64).ravel()
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
     """IoU of two silhouettes of the same shape, e.g. (H, W).
 

@@ -100,16 +100,34 @@ def resolve_model_folders(specs) -> list[tuple[str, Path]]:
     return out
 
 
-def open_engines(folders: list[tuple[str, Path]], threads: int | None = None, mirror_average: bool = False) -> list:
+def open_engines(folders: list[tuple[str, Path]], threads: int | None = None) -> list:
     """One loaded :class:`engine.pipeline.SketchEngine` per folder (cache off); ModelError if unusable."""
     from engine.pipeline import SketchEngine
 
     engines = []
     for _, path in folders:
-        engine = SketchEngine(path, threads=threads, cache_size=0, mirror_average=mirror_average)
+        engine = SketchEngine(path, threads=threads, cache_size=0)
         engine.load()
         engines.append(engine)
     return engines
+
+
+class MirrorAveraged:
+    """An opened engine seen with its ``mirror_average`` on for each prediction (the same sessions, no second load)."""
+
+    def __init__(self, engine) -> None:
+        self._engine = engine
+
+    def predict(self, *args, **kwargs):
+        previous = self._engine.mirror_average
+        self._engine.mirror_average = True
+        try:
+            return self._engine.predict(*args, **kwargs)
+        finally:
+            self._engine.mirror_average = previous
+
+    def __getattr__(self, name: str):
+        return getattr(self._engine, name)
 
 
 def pick_views(num_views: int, n: int) -> list[int]:
@@ -453,7 +471,7 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     threads = args.threads or None
     engines = open_engines(folders, threads)
     if getattr(args, "mirror_average", False):  # every folder again, averaged with the mirrored drawing's mesh
-        engines += open_engines(folders, threads, mirror_average=True)
+        engines += [MirrorAveraged(e) for e in engines]
         folders = folders + [(f"{label} +mirror", path) for label, path in folders]
     check_data(args.data, args.split)
     if args.retrieval_data and not args.no_retrieval:

@@ -51,13 +51,6 @@ def _mean_over_categories(records: list[dict], key: str) -> float:
     return float(np.nanmean([np.nanmean(v) for v in per.values()]))
 
 
-def _nanmean(values) -> float:
-    """Mean of the finite values; NaN (without numpy's empty-slice warning) when none is (--no-intersections)."""
-    v = np.asarray(values, np.float64)
-    v = v[np.isfinite(v)]
-    return float(v.mean()) if v.size else float("nan")
-
-
 def run_refine_bench(
     data_dir: str | Path,
     *,
@@ -89,7 +82,7 @@ def run_refine_bench(
     )
     from training.data.dataset import ShapeViewDataset
     from training.evaluation.evaluate import _pair_metrics, world_vertices
-    from training.evaluation.metrics import solid_voxels
+    from training.evaluation.metrics import finite_mean, solid_voxels
 
     if not steps or any(s < 0 for s in steps):
         raise RefineBenchError(f"--steps must be integers >= 0, got {steps}")
@@ -157,12 +150,13 @@ def run_refine_bench(
                 "refine_ms_p50": float(np.percentile(refine_ms[n], 50)),
                 "refine_ms_p90": float(np.percentile(refine_ms[n], 90)),
                 "latency_ms_p50": float(np.percentile(total, 50)),
-                "self_intersections": _nanmean([r["self_intersections"] for r in rs]),  # NaN: not counted
+                "self_intersections": finite_mean([r["self_intersections"] for r in rs]),  # NaN: not counted
                 "warnings": int(sum(r["warning"] for r in rs)),
                 "notes": int(sum(r["note"] for r in rs)),
                 "target_is_drawing": float(np.mean([r["target_is_drawing"] for r in rs])),
                 "samples": len(rs),
                 "threads": threads,
+                "mirror_average": bool(mirror_average),
             })
     return records
 
@@ -222,7 +216,8 @@ def main_refine_bench(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(records)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    loads = f"load average (1 min) at the start {load_start:.2f}, at the end {load:.2f}"
+    loads = (f"mirror averaging {'on' if args.mirror_average else 'off'}; "
+             f"load average (1 min) at the start {load_start:.2f}, at the end {load:.2f}")
     atomic_write_text(out / "refine.md", table + f"\n{loads}\n")
     atomic_write_text(out / "refine.json", json.dumps({"records": records, "loadavg_1min": [load_start, load]}, indent=2))
     plot(records, out / "refine.png")

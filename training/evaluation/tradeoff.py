@@ -138,8 +138,11 @@ def run_tradeoff(
     records: list[dict] = []
     try:
         combos = [(label, folder, prec) for label, folder in variants for prec in precisions]
+        made: dict[tuple[str, str], Path] = {}  # one quantised folder per (label, precision), shared by its +mirror
         for label, folder, prec in combos:
-            vfolder = make_variant(folder, prec.removesuffix(MIRROR_SUFFIX), work / label)
+            key = (label, prec.removesuffix(MIRROR_SUFFIX))
+            vfolder = made.get(key) or make_variant(folder, key[1], work / label)
+            made[key] = vfolder
             engine = SketchEngine(vfolder, threads=threads, cache_size=0, mirror_average=prec.endswith(MIRROR_SUFFIX))
             engine.load()
             model_level = int(engine.model_info()["template_level"])

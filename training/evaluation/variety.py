@@ -89,10 +89,7 @@ def nearest_train_iou(
             "n_held_out": len(best),
         }
     keys = ("test", "held_out", "n_train", "n_test", "n_held_out")
-    def finite_mean(values) -> float:  # NaN, without numpy's empty-slice warning, when no category has a value
-        v = np.asarray(values, np.float64)
-        v = v[np.isfinite(v)]
-        return float(v.mean()) if v.size else float("nan")
+    from training.evaluation.metrics import finite_mean
 
     out["mean"] = {k: finite_mean([out[c][k] for c in cats]) for k in keys}
     return out

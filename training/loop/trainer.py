@@ -60,7 +60,7 @@ from torch import nn
 from engine.errors import ModelError, SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere, mirror_permutation
-from training.data.mirror import mirror_consistency
+from training.data.mirror import counterpart_inputs, mirror_consistency
 from training.loop.checkpoint import load_latest_checkpoint, require_checkpoint, save_checkpoint
 from training.loop.config import TrainConfig, code_version
 from training.model.losses import chamfer_loss, sample_mesh_points
@@ -676,8 +676,6 @@ class Trainer:
             before = batch
             batch = mirror_batch(batch, flags.to(batch["camera"].device))
             if self.cfg.mirror_consistency > 0:
-                from training.data.mirror import counterpart_inputs
-
                 batch = dict(batch, input64_counterpart=counterpart_inputs(before, batch, flags.to(batch["camera"].device)))
         buffers = {k: {n: b.detach().clone() for n, b in m.named_buffers()} for k, m in self.models.items()}
         for o in self.optimizers.values():
