@@ -66,7 +66,7 @@ def silhouette_edge_vertices(faces: np.ndarray, screen: np.ndarray) -> np.ndarra
     Returns:
         (K,) int64 sorted vertex indices.
     """
-    faces = np.asarray(faces, dtype=np.int64)
+    faces = np.array(faces, dtype=np.int64)  # a writable copy: torch.from_numpy warns on a read-only one
     d1 = screen[faces[:, 1]] - screen[faces[:, 0]]
     d2 = screen[faces[:, 2]] - screen[faces[:, 0]]
     orient = np.sign(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
