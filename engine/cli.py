@@ -102,7 +102,7 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
     Returns:
         dict with sketch, output, timings_ms (preprocess, generator, downsample, predictor,
         assemble, refine, postprocess, export, stats, total), vertices, faces, watertight,
-        winding_consistent, self_intersections, area, volume, cached, normals, refine_steps,
+        winding_consistent, self_intersections, area, volume, cached, normals, refine_steps, mirror_average,
         warnings.
     """
     from engine.pipeline import to_raster
@@ -149,6 +149,7 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
                 "smooth_iterations": smooth,
                 "subdivide_levels": subdivide,
                 "refine_steps": refine,
+                "mirror_average": pred.mirror_average,
                 "warnings": list(pred.warnings),
                 "cached": pred.cached,
                 "normals": str(normals_path) if normals_path is not None else None,

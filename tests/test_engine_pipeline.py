@@ -168,8 +168,11 @@ def test_a_flipped_drawing_is_the_x_negated_mesh_seen_by_the_sketch_camera():
 def test_cli_infer_mirror_average(tmp_path, models, sketch_png):
     out_plain, out_mirror = tmp_path / "plain.obj", tmp_path / "mirror.obj"
     for out, extra in ((out_plain, []), (out_mirror, ["--mirror-average"])):
-        r = _cli("infer", sketch_png, "-o", out, "--models", models, "--threads", 1, *extra, cwd=tmp_path)
+        report = out.with_suffix(".json")
+        r = _cli("infer", sketch_png, "-o", out, "--models", models, "--threads", 1, "--report", report, *extra,
+                 cwd=tmp_path)
         assert r.returncode == 0, r.stderr
+        assert json.loads(report.read_text())["mirror_average"] is bool(extra)
     import trimesh
 
     mesh = trimesh.load(out_mirror, process=False)
