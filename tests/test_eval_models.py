@@ -103,20 +103,29 @@ def test_template_floor_is_the_voxel_iou_of_the_template_sphere(result, world):
     assert rows["ball"]["iou"]["template"] > 0.9
 
 
+def _brick_view(world, res, k):
+    """Row and k-th scored view of the brick in an eval result, with that view's stored drawing, rotation and true mesh."""
+    row = next(r for r in res["rows"] if r["shape_id"] == "brick")
+    view = row["per_view"][k]
+    with _shape_file(world, "brick") as z:
+        assert view["azimuth"] == z["azimuths"][view["view"]]
+        return (row, view, z["sketch"][view["view"]].astype(np.float32) / 255.0,
+                z["cameras"][view["view"]][:9].reshape(3, 3), Mesh(z["vertices"], z["faces"]))
+
+
+def _world_iou(mesh, rot, gt) -> float:
+    """Voxel IoU of a view-frame mesh against the true one: p_world = R^T p_view."""
+    world_verts = (rot.T @ np.asarray(mesh.vertices, np.float64).T).T
+    return voxel_iou(Mesh(world_verts, mesh.faces), gt, 32)
+
+
 def test_a_model_iou_is_the_engines_mesh_rotated_back_to_the_world(result, world):
     """Redo one view by hand: the stored line drawing through the engine, p_world = R^T p_view, voxel IoU."""
     res, _ = result
-    row = next(r for r in res["rows"] if r["shape_id"] == "brick")
-    view = row["per_view"][1]
-    with _shape_file(world, "brick") as z:
-        sketch = z["sketch"][view["view"]].astype(np.float32) / 255.0
-        rot = z["cameras"][view["view"]][:9].reshape(3, 3)
-        gt = Mesh(z["vertices"], z["faces"])
-        assert view["azimuth"] == z["azimuths"][view["view"]]
+    row, view, sketch, rot, gt = _brick_view(world, res, 1)
     for label, folder in (("bundled", None), ("tiny", world["tiny"])):
         pred = SketchEngine(folder, threads=1, cache_size=0).predict(sketch).mesh
-        world_verts = (rot.T @ np.asarray(pred.vertices, np.float64).T).T
-        assert view["iou"][label] == pytest.approx(voxel_iou(Mesh(world_verts, pred.faces), gt, 32), abs=1e-12)
+        assert view["iou"][label] == pytest.approx(_world_iou(pred, rot, gt), abs=1e-12)
         assert row["iou"][label] == pytest.approx(np.mean([v["iou"][label] for v in row["per_view"]]), abs=1e-12)
 
 
@@ -242,15 +251,8 @@ def test_mirror_average_adds_a_row_per_folder_scored_as_the_engine_with_it_on(wo
     out = tmp_path / "m.json"
     assert main(["eval", "--models", str(world["tiny"]), "--mirror-average", "--data", str(world["data"]), "--split",
                  "all", "--no-retrieval", "--threads", "1", "--quiet", "--out", str(tmp_path), "--json", str(out)]) == 0
-    res = json.loads(out.read_text())
-    row = next(r for r in res["rows"] if r["shape_id"] == "brick")
-    view = row["per_view"][0]
-    with _shape_file(world, "brick") as z:
-        sketch = z["sketch"][view["view"]].astype(np.float32) / 255.0
-        rot = z["cameras"][view["view"]][:9].reshape(3, 3)
-        gt = Mesh(z["vertices"], z["faces"])
+    _, view, sketch, rot, gt = _brick_view(world, json.loads(out.read_text()), 0)
     for label, on in (("tiny", False), ("tiny +mirror", True)):
         pred = SketchEngine(world["tiny"], threads=1, cache_size=0, mirror_average=on).predict(sketch)
         assert pred.mirror_average is on
-        world_verts = (rot.T @ np.asarray(pred.mesh.vertices, np.float64).T).T
-        assert view["iou"][label] == pytest.approx(voxel_iou(Mesh(world_verts, pred.mesh.faces), gt, 32), abs=1e-12)
+        assert view["iou"][label] == pytest.approx(_world_iou(pred.mesh, rot, gt), abs=1e-12)
