@@ -349,10 +349,10 @@ class MainWindow(QMainWindow):
         self.actions["wireframe"].setChecked(self.viewport.wireframe)
         a("guide", "Framing &guide", self._toggle_guide, checkable=True)
         self.actions["guide"].setChecked(self.canvas.show_guide)
-        a("refine", "Re&fine to outline", self._toggle_refine, QKeySequence("R"), checkable=True)
+        a("refine", "Re&fine to outline", self._toggle_engine_option, QKeySequence("R"), checkable=True)
         self.actions["refine"].setToolTip("Move the mesh so its outline from the sketch's view matches the drawing")
         self.actions["refine"].setChecked(REFINE_BY_DEFAULT)
-        a("mirror", "&Mirror average", self._toggle_mirror, QKeySequence("M"), checkable=True)
+        a("mirror", "&Mirror average", self._toggle_engine_option, QKeySequence("M"), checkable=True)
         self.actions["mirror"].setToolTip("Also read the drawing flipped left to right and average the two meshes "
                                           "(steadier shapes, about twice the networks' time)")
         self.actions["mirror"].setChecked(MIRROR_BY_DEFAULT)
@@ -426,26 +426,22 @@ class MainWindow(QMainWindow):
         self.viewport.set_wireframe(on)
         self.settings.wireframe = bool(on)
 
-    def _toggle_refine(self, on: bool) -> None:
-        self._apply_refine()
+    def _toggle_engine_option(self, on: bool) -> None:
+        """Refine to outline or Mirror average toggled: tell the engine, predict the current sketch again."""
+        self._apply_engine_options()
         if not self.canvas.is_empty:
             self._request_inference()
 
-    def _apply_refine(self) -> None:
-        """Tell the engine how many refinement steps the toggle asks for (engine/refine.py)."""
+    def _apply_engine_options(self) -> None:
+        """Tell the engine what the toggles ask for: refinement steps (engine/refine.py), mirror averaging
+        (engine/pipeline.py). An engine without the option (a test double) is left alone."""
         from engine.refine import DEFAULT_STEPS  # noqa: PLC0415
 
-        if self.engine is not None and hasattr(self.engine, "refine_steps"):
+        if self.engine is None:
+            return
+        if hasattr(self.engine, "refine_steps"):
             self.engine.refine_steps = DEFAULT_STEPS if self.actions["refine"].isChecked() else 0
-
-    def _toggle_mirror(self, on: bool) -> None:
-        self._apply_mirror()
-        if not self.canvas.is_empty:
-            self._request_inference()
-
-    def _apply_mirror(self) -> None:
-        """Tell the engine whether the toggle asks for mirror averaging (engine/pipeline.py)."""
-        if self.engine is not None and hasattr(self.engine, "mirror_average"):
+        if hasattr(self.engine, "mirror_average"):
             self.engine.mirror_average = self.actions["mirror"].isChecked()
 
     def _toggle_guide(self, on: bool) -> None:
@@ -511,8 +507,7 @@ class MainWindow(QMainWindow):
         """Switch to ``engine`` (the models of ``folder``) and redo the current sketch with it."""
         self._model_problem = None
         self.controller.set_engine(engine)
-        self._apply_refine()
-        self._apply_mirror()
+        self._apply_engine_options()
         self.model_label.setText(f"Model: {folder.name or folder}")
         self.model_label.setToolTip(str(folder))
         if remember:
