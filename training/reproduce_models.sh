@@ -1054,8 +1054,8 @@ EOF
       # validation split
       local c=${1%-big}; eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT13/big_mc/val_${EVAL_NAME#eval_}" "$RUNS13/v13_big_mc" "$RUNS12/v12_more2" "$RUNS10/v10_more" ;;
-    logs-v13)  # predictor-v13's two runs: iterations, rates, loss terms
-      log_summary "$RUNS13" v13_ctl v13_mc ;;
+    logs-v13)  # predictor-v13's two runs and predictor-v13-big's: iterations, rates, loss terms
+      log_summary "$RUNS13" v13_ctl v13_mc v13_big_mc ;;
     eval-control-mirror-v13|eval-control-strong-mirror-v13|eval-control-side-mirror-v13)  # full minus silhouette-only
       # with mirror averaging: the ninth against its silhouette-only control (control-v10-more), plain and +mirror, test split
       local c=${1/control-/}; eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
