@@ -33,6 +33,10 @@
 #                                                 INPUTS=generated DATA=/tmp/g256 ARCH=... (data 42 s, each generated
 #                                                 set 35 s for 1,056 views on two busy cores: about 33 ms per view and
 #                                                 core, so about 105 s per set on 16 cores for the 49,920 training views)
+#   EXTRA="--mirror-consistency 50" (with either call above): more `train mesh` flags; this one keeps the
+#                                                 larger predictor's vertex placement mirror-consistent, which the
+#                                                 app's mirror averaging needs (model card, "Mirror averaging":
+#                                                 predictor-v13-big)
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
 # cores split between them. A short concurrent calibration run of each (CAL iterations) sets its cosine
@@ -100,11 +104,12 @@ elapsed() { echo $(($(date +%s) - T0)); }
 # there; with workers it overlaps the step: 6.8 it/s at batch 512 on the H200 against 3.4 without (the tenth's calls).
 WORKERS=${WORKERS:-4}
 ARCH=${ARCH:-}  # predictor size flags of `train mesh` (the same in every call that continues the run)
+EXTRA=${EXTRA:-}  # further `train mesh` flags (e.g. --mirror-consistency 50)
 INIT_ARGS=(--init-mesh "$INIT"); [ "$INIT" = fresh ] && INIT_ARGS=()
 INPUT_ARGS=(); [ "$INPUTS" = generated ] && INPUT_ARGS=(--input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges)
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe on INPUTS)
   # shellcheck disable=SC2086
-  echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" "${INPUT_ARGS[@]}" $ARCH --batch "$2" --lr-mesh "$3" \
+  echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" "${INPUT_ARGS[@]}" $ARCH $EXTRA --batch "$2" --lr-mesh "$3" \
     --mirror 0.5 --num-workers "$WORKERS" --val-every 0 --plot-every 0 --threads "$THREADS"
 }
 
