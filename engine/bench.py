@@ -33,7 +33,7 @@ from engine.models import model_paths, resolve_models_dir
 
 STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
 VARIANTS = C.PRECISION_VARIANTS
-MIRROR_SUFFIX = "+mirror"
+MIRROR_SUFFIX = C.MIRROR_SUFFIX
 EXPORT_SUFFIX = ".glb"
 """Format timed by the ``export`` stage (the app's default export)."""
 
@@ -83,14 +83,25 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
     return dst
 
 
+def split_variant(name: str) -> tuple[str, bool]:
+    """``"int8+mirror"`` -> ``("int8", True)``: a variant's precision and whether mirror averaging is on."""
+    if name not in C.MIRRORED_VARIANTS:
+        raise SketchInputError(f"unknown variant {name!r}; choose from {', '.join(VARIANTS)}, "
+                               f"each optionally with {MIRROR_SUFFIX}")
+    return name.removesuffix(MIRROR_SUFFIX), name.endswith(MIRROR_SUFFIX)
+
+
 def make_variant(models_dir: Path, variant: str, out_dir: Path) -> Path:
-    """A folder holding the models of ``variant`` (``fp32`` returns ``models_dir`` itself)."""
+    """A folder holding the models of precision ``variant`` (``fp32`` returns ``models_dir`` itself); a folder
+    already made in ``out_dir`` is reused (a precision and its ``+mirror`` twin share one quantisation)."""
     if variant == "fp32":
         return models_dir
     if variant not in VARIANTS:
         raise SketchInputError(f"unknown variant {variant!r}; choose from {', '.join(VARIANTS)}")
     gen, pred = model_paths(models_dir)
     folder = out_dir / variant
+    if all((folder / f).is_file() for f in (C.GENERATOR_FILE, C.PREDICTOR_FILE)):
+        return folder
     folder.mkdir(parents=True, exist_ok=True)
     if variant == "int8":
         quantize_model(gen, folder / C.GENERATOR_FILE)
@@ -197,10 +208,8 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
     from engine.models import default_threads
 
     variants = list(variants or VARIANTS)
-    bad = [v for v in variants if v.removesuffix(MIRROR_SUFFIX) not in VARIANTS]
-    if bad:
-        raise SketchInputError(f"unknown variant {bad[0]!r}; choose from {', '.join(VARIANTS)}, "
-                               f"each optionally with {MIRROR_SUFFIX}")
+    for v in variants:
+        split_variant(v)  # every name checked before anything runs
     if "fp32" not in variants:
         variants.insert(0, "fp32")  # the reference for the error columns
     src = resolve_models_dir(models_dir)
@@ -217,17 +226,14 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
             progress = tqdm(total=runs * len(variants), unit="run", file=sys.stderr, leave=False, disable=None)
         results = {}
         notes = []
-        folders: dict[str, Path] = {}  # one quantised folder per precision, shared by its +mirror variant
         for variant in variants:
-            base = variant.removesuffix(MIRROR_SUFFIX)
+            precision, mirror = split_variant(variant)
             try:
-                folder = folders.get(base) or make_variant(src, base, tmp / "variants")
-                folders[base] = folder
+                folder = make_variant(src, precision, tmp / "variants")
             except MissingExtraError as exc:
                 notes.append(f"{variant}: skipped ({exc})")
                 continue
-            times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress,
-                                       mirror=variant.endswith(MIRROR_SUFFIX))
+            times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress, mirror=mirror)
             size = sum(p.stat().st_size for p in model_paths(folder))
             results[variant] = (times, ref, size)
         if progress is not None:

@@ -57,6 +57,9 @@ META_QUANTIZATION = "quantization"
 PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,
 or with both networks quantised (``sketchmesh bench engine`` / ``bench tradeoff``)."""
+MIRROR_SUFFIX = "+mirror"
+MIRRORED_VARIANTS = (*PRECISION_VARIANTS, *(v + MIRROR_SUFFIX for v in PRECISION_VARIANTS))
+"""Every variant name the benches take: a precision, optionally with the engine's mirror averaging on."""
 
 REQUIRED_METADATA = (META_FORMAT, META_ROLE, META_CODE_VERSION, META_CONVENTIONS)
 

@@ -10,7 +10,7 @@ import argparse
 import math
 
 from engine.cliutil import float_in, int_in, one_line_errors, positive_int
-from engine.contract import PRECISION_VARIANTS
+from engine.contract import MIRRORED_VARIANTS
 
 _resolution = int_in(1, 2048)
 _non_negative_float = float_in(0.0, math.inf)
@@ -230,7 +230,7 @@ def register(commands, bench) -> None:
     t.add_argument("--variant", action="append", required=True, metavar="LABEL=DIR",
                    help="a folder of exported models and its label (repeat)")
     t.add_argument("--precisions", nargs="+", default=["fp32"],
-                   choices=[*PRECISION_VARIANTS, *(p + "+mirror" for p in PRECISION_VARIANTS)],
+                   choices=MIRRORED_VARIANTS,
                    help="fp32, int8-predictor, int8, each optionally with +mirror (the engine's mirror averaging on)")
     t.add_argument("--levels", type=int_in(0, 6), nargs="+", default=None, metavar="L",
                    help="template levels to report (default: the predictor's own)")

@@ -34,8 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.bench import MIRROR_SUFFIX
-from engine.contract import PRECISION_VARIANTS
+from engine.bench import MIRROR_SUFFIX, split_variant
 from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes, atomic_write_text
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
@@ -116,9 +115,7 @@ def run_tradeoff(
     if not variants:
         raise TradeoffError("give at least one --variant LABEL=DIR")
     for p in precisions:
-        if p.removesuffix(MIRROR_SUFFIX) not in PRECISION_VARIANTS:
-            raise TradeoffError(f"unknown precision {p!r}; choose from {', '.join(PRECISION_VARIANTS)}, "
-                                f"each optionally with {MIRROR_SUFFIX}")
+        split_variant(p)  # every precision checked before anything runs
     test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
     if len(test) == 0:
         raise TradeoffError(f"the test split of {data_dir} is empty")
@@ -138,12 +135,10 @@ def run_tradeoff(
     records: list[dict] = []
     try:
         combos = [(label, folder, prec) for label, folder in variants for prec in precisions]
-        made: dict[tuple[str, str], Path] = {}  # one quantised folder per (label, precision), shared by its +mirror
         for label, folder, prec in combos:
-            key = (label, prec.removesuffix(MIRROR_SUFFIX))
-            vfolder = made.get(key) or make_variant(folder, key[1], work / label)
-            made[key] = vfolder
-            engine = SketchEngine(vfolder, threads=threads, cache_size=0, mirror_average=prec.endswith(MIRROR_SUFFIX))
+            precision, mirror = split_variant(prec)
+            vfolder = make_variant(folder, precision, work / label)
+            engine = SketchEngine(vfolder, threads=threads, cache_size=0, mirror_average=mirror)
             engine.load()
             model_level = int(engine.model_info()["template_level"])
             model_mb = sum(f.stat().st_size for f in vfolder.glob("*.onnx")) / 2**20
