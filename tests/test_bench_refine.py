@@ -61,3 +61,25 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
     mirrored = json.loads((tmp_path / "mirror" / "refine.json").read_text())["records"][0]
     assert abs(mirrored["sil_iou_target"] - records[0]["sil_iou_target"]) > 1e-4 and mirrored["mirror_average"]
     assert not records[0]["mirror_average"]
+
+
+def test_bench_refine_true_camera_diagnostic(data, tmp_path):
+    """--true-camera adds the voxel IoU of the refinement done in each view's true camera: at N = 0 the
+    mesh is the unrefined one whichever camera, so it equals the plain voxel IoU; without the flag the
+    column is absent."""
+    models = write_fixture_models(tmp_path / "models")
+    from sketchmesh.cli import main
+
+    out = tmp_path / "oracle"
+    assert main(["bench", "refine", "--data", str(data), "--out", str(out), "--models", str(models), "--steps", "0",
+                 "2", "--styles", "clean", "--max-samples", "2", "--quiet", "--no-intersections",
+                 "--true-camera"]) == 0
+    records = json.loads((out / "refine.json").read_text())["records"]
+    assert records[0]["voxel_iou_true_camera"] == pytest.approx(records[0]["voxel_iou"], abs=1e-12)
+    assert 0.0 <= records[1]["voxel_iou_true_camera"] <= 1.0
+    assert "true camera (diagnostic)" in (out / "refine.md").read_text()
+    plain = tmp_path / "plain"
+    assert main(["bench", "refine", "--data", str(data), "--out", str(plain), "--models", str(models), "--steps", "0",
+                 "--styles", "clean", "--max-samples", "1", "--quiet", "--no-intersections"]) == 0
+    assert json.loads((plain / "refine.json").read_text())["records"][0]["voxel_iou_true_camera"] is None
+    assert "diagnostic" not in (plain / "refine.md").read_text()
