@@ -294,7 +294,8 @@ def evaluate(
     if retrieval:
         if train_set is None:
             # only the 64x64 normal images and cameras, from the dataset's array cache (not every shape file)
-            train_set = make_dataset(data_cfg.replace(augment_strength=0.0, extra_views=0, mirror=0.0, mirror_inputs=""),
+            train_set = make_dataset(data_cfg.replace(augment_strength=0.0, extra_views=0, mirror=0.0, mirror_consistency=0.0,
+                                                     mirror_inputs=""),
                                      "train", fields="mesh")
         methods.append(_RetrievalMethod(train_set, methods[0], progress))
 

@@ -292,7 +292,7 @@ def calibration_inputs(cfg: TrainConfig, count: int = CALIBRATION_SAMPLES) -> tu
     last = None
     for input_normals in ([cfg.input_normals] if cfg.input_normals else []) + [""]:
         try:
-            ds = make_dataset(cfg.replace(mode="mesh", input_normals=input_normals, input_share=1.0, mirror=0.0,
+            ds = make_dataset(cfg.replace(mode="mesh", input_normals=input_normals, input_share=1.0, mirror=0.0, mirror_consistency=0.0,
                                           mirror_inputs="", augment_strength=0.0, extra_views=0), "train",
                               fields="mesh")
         except Exception as exc:  # noqa: BLE001 - reported below if no source works
