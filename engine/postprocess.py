@@ -214,11 +214,23 @@ def triangles_intersect(t1: np.ndarray, t2: np.ndarray, eps: float = 0.0) -> np.
     t2 = np.asarray(t2, dtype=np.float64)
     if t1.shape != t2.shape or t1.ndim != 3 or t1.shape[1:] != (3, 3):
         raise ValueError(f"triangles must both be (N, 3, 3), got {t1.shape} and {t2.shape}")
-    hit = np.zeros(len(t1), dtype=bool)
+    # early out, exact in the same predicate: a triangle whose three corners lie strictly on one side of
+    # the other's plane cannot cross it (most broad-phase pairs are neighbours of neighbours, rejected here)
+    live = np.ones(len(t1), dtype=bool)
     for s, t in ((t1, t2), (t2, t1)):
+        side = np.stack([_orient(t[:, 0], t[:, 1], t[:, 2], s[:, k]) for k in range(3)], axis=1)
+        live &= ~(np.all(side > eps, axis=1) | np.all(side < -eps, axis=1))
+    hit = np.zeros(len(t1), dtype=bool)
+    idx = np.flatnonzero(live)
+    if len(idx) == 0:
+        return hit
+    u1, u2 = t1[idx], t2[idx]
+    found = np.zeros(len(idx), dtype=bool)
+    for s, t in ((u1, u2), (u2, u1)):
         a, b, c = t[:, 0], t[:, 1], t[:, 2]
         for i, j in ((0, 1), (1, 2), (2, 0)):
-            hit |= _segment_crosses_triangle(s[:, i], s[:, j], a, b, c, eps)
+            found |= _segment_crosses_triangle(s[:, i], s[:, j], a, b, c, eps)
+    hit[idx] = found
     return hit
 
 
@@ -246,11 +258,14 @@ def candidate_pairs(mesh: Mesh) -> np.ndarray:
     """Broad phase: face pairs (i < j) whose bounding boxes overlap and that share no vertex.
 
     A uniform grid (cell ~ the median face size): each face is entered in every cell its box
-    touches, pairs are formed only inside cells (vectorised with sort + repeat), deduplicated,
-    then box-tested. The work scales with F times the local face density, not F^2.
+    touches, pairs are formed only inside cells (vectorised with sort + repeat) and box-tested.
+    Two overlapping boxes share every cell of their intersection; a pair is kept only in the one
+    cell holding the larger of the two boxes' low corners (inside both boxes' cell ranges when
+    they overlap), so no deduplication pass is needed. The work scales with F times the local
+    face density, not F^2.
 
     Returns:
-        (P, 2) int64 face index pairs, i < j, unique.
+        (P, 2) int64 face index pairs, i < j, unique, sorted.
     """
     _check_mesh(mesh)
     F = mesh.num_faces
@@ -283,13 +298,20 @@ def candidate_pairs(mesh: Mesh) -> np.ndarray:
     group_start = np.repeat(start_of, np.diff(np.r_[start_of, len(cell_sorted)]))
     p, q = _pairs_within_groups(group_start, len(cell_sorted))
     i, j = face_sorted[p], face_sorted[q]
-    key = np.unique(np.minimum(i, j) * F + np.maximum(i, j))  # 1-D keys sort far faster than rows
-    i, j = key // F, key % F
-    ok = (i != j) & np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-    pairs = np.stack([i[ok], j[ok]], axis=1)
-    fi, fj = mesh.faces[pairs[:, 0]], mesh.faces[pairs[:, 1]]
+    cell_of_pair = cell_sorted[p]
+    ok = np.ones(len(i), bool)
+    ref = np.zeros(len(i), np.int64)  # the reference cell: max of the low corners' cells, per axis
+    for a, stride in enumerate((dims[1] * dims[2], dims[2], 1)):  # per axis: (N,)-vector ops, no (N, 3) reductions
+        lo_a, hi_a, c0_a = lo[:, a], hi[:, a], c0[:, a]
+        ok &= (lo_a[i] <= hi_a[j]) & (lo_a[j] <= hi_a[i])
+        ref += np.maximum(c0_a[i], c0_a[j]) * stride
+    ok &= cell_of_pair == ref
+    i, j = i[ok], j[ok]
+    fi, fj = mesh.faces[i], mesh.faces[j]
     share = np.any(fi[:, :, None] == fj[:, None, :], axis=(1, 2))
-    return pairs[~share]
+    i, j = i[~share], j[~share]
+    key = np.sort(np.minimum(i, j) * F + np.maximum(i, j))  # 1-D keys sort far faster than rows
+    return np.stack([key // F, key % F], axis=1).astype(np.int64)
 
 
 def candidate_pairs_bruteforce(mesh: Mesh) -> np.ndarray:

@@ -290,6 +290,32 @@ def test_self_intersections_of_overlapping_spheres_match_brute_force(scale):
     assert count == loop_count and count > 0
 
 
+def test_candidate_pairs_match_brute_force_on_a_crumpled_mesh():
+    # random vertex jitter on a fine sphere: boxes of every size and many overlaps, no pair listed twice
+    rng = np.random.default_rng(3)
+    m = icosphere(3)
+    mesh = Mesh(m.vertices + rng.normal(0.0, 0.08, m.vertices.shape).astype(np.float32), m.faces)
+    brute = candidate_pairs_bruteforce(mesh)
+    np.testing.assert_array_equal(candidate_pairs(mesh), brute[np.lexsort((brute[:, 1], brute[:, 0]))])
+
+
+def test_triangles_intersect_early_out_agrees_with_the_edge_test():
+    # the plane-side early out must not change an answer: against the definition (an edge of one crosses
+    # the other) evaluated on every pair, on random pairs of which a good share cross
+    from engine.postprocess import _segment_crosses_triangle
+
+    rng = np.random.default_rng(0)
+    t1 = rng.normal(size=(4000, 3, 3))
+    t2 = t1[:, [1, 2, 0]] * 0.5 + rng.normal(scale=0.6, size=(4000, 3, 3))
+    ref = np.zeros(4000, bool)
+    for s, t in ((t1, t2), (t2, t1)):
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            ref |= _segment_crosses_triangle(s[:, i], s[:, j], t[:, 0], t[:, 1], t[:, 2], 0.0)
+    got = triangles_intersect(t1, t2)
+    assert 0.1 < ref.mean() < 0.9
+    np.testing.assert_array_equal(got, ref)
+
+
 def test_mesh_stats_on_closed_and_open_meshes():
     m = icosphere(2)
     st = mesh_stats(m)
