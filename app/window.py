@@ -143,6 +143,9 @@ MIRROR_BY_DEFAULT = True
 """Whether "Mirror average" starts checked: each mesh averaged with the one predicted from the drawing flipped
 left to right (engine.pipeline), which raises voxel IoU from sketches for a second pass of both networks
 (model card, "Mirror averaging")."""
+REPAIR_BY_DEFAULT = True
+"""Whether "Repair folds" starts checked: where the predicted surface crosses itself, it is smoothed just there until
+it does not, so the exported mesh has no self-intersections (README, "Repairing folds")."""
 
 
 def format_timings(timings_ms: dict[str, float], cached: bool = False) -> str:
@@ -356,6 +359,10 @@ class MainWindow(QMainWindow):
         self.actions["mirror"].setToolTip("Also read the drawing flipped left to right and average the two meshes "
                                           "(steadier shapes, about twice the networks' time)")
         self.actions["mirror"].setChecked(MIRROR_BY_DEFAULT)
+        a("repair", "Repair f&olds", self._toggle_engine_option, checkable=True)
+        self.actions["repair"].setToolTip("Where the mesh's surface crosses itself, smooth it just there until it does "
+                                          "not (clean meshes for printing and booleans)")
+        self.actions["repair"].setChecked(REPAIR_BY_DEFAULT)
         a("about", "&About Sketchmesh", self.about)
 
         mb = self.menuBar()
@@ -369,7 +376,7 @@ class MainWindow(QMainWindow):
         for k in ("pen", "eraser"):
             m.addAction(self.actions[k])
         m = mb.addMenu("&View")
-        for k in [f"view_{p}" for p in VIEW_PRESETS] + [None, "reset_view", "wireframe", "guide", "refine", "mirror"]:
+        for k in [f"view_{p}" for p in VIEW_PRESETS] + [None, "reset_view", "wireframe", "guide", "refine", "mirror", "repair"]:
             m.addSeparator() if k is None else m.addAction(self.actions[k])
         m = mb.addMenu("&Help")
         m.addAction(self.actions["about"])
@@ -427,14 +434,14 @@ class MainWindow(QMainWindow):
         self.settings.wireframe = bool(on)
 
     def _toggle_engine_option(self, on: bool) -> None:
-        """Refine to outline or Mirror average toggled: tell the engine, predict the current sketch again."""
+        """Refine to outline, Mirror average or Repair folds toggled: tell the engine, predict the sketch again."""
         self._apply_engine_options()
         if not self.canvas.is_empty:
             self._request_inference()
 
     def _apply_engine_options(self) -> None:
-        """Tell the engine what the toggles ask for: refinement steps (engine/refine.py), mirror averaging
-        (engine/pipeline.py). An engine without the option (a test double) is left alone."""
+        """Tell the engine what the toggles ask for: refinement steps (engine/refine.py), mirror averaging and the
+        fold repair (engine/pipeline.py). An engine without the option (a test double) is left alone."""
         from engine.refine import DEFAULT_STEPS  # noqa: PLC0415
 
         if self.engine is None:
@@ -443,6 +450,8 @@ class MainWindow(QMainWindow):
             self.engine.refine_steps = DEFAULT_STEPS if self.actions["refine"].isChecked() else 0
         if hasattr(self.engine, "mirror_average"):
             self.engine.mirror_average = self.actions["mirror"].isChecked()
+        if hasattr(self.engine, "repair_folds"):
+            self.engine.repair_folds = self.actions["repair"].isChecked()
 
     def _toggle_guide(self, on: bool) -> None:
         self.canvas.set_show_guide(on)

@@ -53,6 +53,9 @@ def register(commands, bench) -> None:
     p.add_argument("--mirror-average", action="store_true",
                    help="also predict from the drawing flipped left to right and average the two meshes (about twice "
                    "the networks' time; see engine/pipeline.py)")
+    p.add_argument("--repair-folds", action="store_true",
+                   help="where the predicted surface crosses itself, smooth just there until it does not (one "
+                   "self-intersection check when nothing crosses; see engine/postprocess.py)")
     p.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads (default: physical cores)")
     p.set_defaults(func=cmd_infer)
     one_line_errors(p)
@@ -101,9 +104,9 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
 
     Returns:
         dict with sketch, output, timings_ms (preprocess, generator, downsample, predictor,
-        assemble, refine, postprocess, export, stats, total), vertices, faces, watertight,
+        assemble, repair, refine, postprocess, export, stats, total), vertices, faces, watertight,
         winding_consistent, self_intersections, area, volume, cached, normals, refine_steps, mirror_average,
-        warnings.
+        repair_folds, warnings.
     """
     from engine.pipeline import to_raster
 
@@ -150,6 +153,7 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
                 "subdivide_levels": subdivide,
                 "refine_steps": refine,
                 "mirror_average": pred.mirror_average,
+                "repair_folds": pred.repair_folds,
                 "warnings": list(pred.warnings),
                 "cached": pred.cached,
                 "normals": str(normals_path) if normals_path is not None else None,
@@ -220,7 +224,8 @@ def cmd_infer(args: argparse.Namespace) -> int:
         if value:
             (check_output_dir if many else check_output_file)(value, flag)
 
-    sketch_engine = SketchEngine(args.models, threads=args.threads, mirror_average=args.mirror_average)
+    sketch_engine = SketchEngine(args.models, threads=args.threads, mirror_average=args.mirror_average,
+                                 repair_folds=args.repair_folds)
     sketch_engine.load()  # model problems stop everything before any sketch is read
 
     progress = None

@@ -13,12 +13,15 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
    and the two meshes are averaged vertex by vertex, the second mirrored back
    (:func:`engine.icosphere.mirror_average`): each stage's time is the sum of its two runs (the
    averaging counts in ``assemble``), the normal image kept is the plain drawing's;
-6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
+6. ``repair``      optional (``repair_folds``): where the surface crosses itself, smooth just there until it
+   does not (:func:`engine.postprocess.repair_self_intersections`); one self-intersection check
+   when nothing crosses, 0.0 when off;
+7. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off.
 
 Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
-cache keyed on a hash of the preprocessed raster and the mirror setting skips stages 2-5 when
-neither has changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
+cache keyed on a hash of the preprocessed raster and the mirror and repair settings skips stages 2-6
+when none has changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
 thread-safe and never touches Qt.
 """
 
@@ -45,7 +48,7 @@ from engine.preprocess import rasterize_strokes, sketch_raster_from_image
 from engine.refine import MAX_STEPS, refine_prediction
 from engine.strokes import Stroke
 
-STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "refine")
+STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "repair", "refine")
 """Keys of :attr:`Prediction.timings_ms`, in pipeline order."""
 
 DEFAULT_CACHE_SIZE = 16
@@ -66,10 +69,11 @@ class Prediction:
         sketch: (256, 256) float32 in [0, 1], 1 = ink: the raster the generator saw.
         timings_ms: one entry per stage in :data:`STAGES` (milliseconds); on a cache hit the
             skipped stages are 0.0.
-        cached: True when stages 2-5 came from the cache.
+        cached: True when stages 2-6 came from the cache.
         warnings: things the user should know about the result (a refinement that fell back to
             the unrefined mesh says why); empty when all went as asked.
         mirror_average: whether the mesh is the average with the flipped drawing's.
+        repair_folds: whether self-intersections of the prediction were repaired.
     """
 
     mesh: Mesh
@@ -79,6 +83,7 @@ class Prediction:
     cached: bool
     warnings: tuple[str, ...] = ()
     mirror_average: bool = False
+    repair_folds: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +91,7 @@ class _Entry:
     mesh: Mesh
     normals_nchw: np.ndarray  # (1, 3, 256, 256) float32 generator output, read-only; HWC only on request
     refined: dict = field(default_factory=dict)  # steps -> engine.refine.RefineResult, under the cache lock
+    warnings: tuple[str, ...] = ()  # what the repair could not do
 
 
 def downsample_normals(normals_nchw: np.ndarray, size: int = C.PREDICTOR_INPUT_SIZE) -> np.ndarray:
@@ -191,16 +197,20 @@ class SketchEngine:
             :attr:`refine_steps` can be changed later, e.g. by the app's toggle).
         mirror_average: also predict from the drawing flipped left to right and average the two
             meshes (module doc); :attr:`mirror_average` can be changed later.
+        repair_folds: repair the prediction where its surface crosses itself (module doc);
+            :attr:`repair_folds` can be changed later.
     """
 
     def __init__(self, models_dir: str | os.PathLike | None = None, *, threads: int | None = None,
-                 cache_size: int = DEFAULT_CACHE_SIZE, refine_steps: int = 0, mirror_average: bool = False):
+                 cache_size: int = DEFAULT_CACHE_SIZE, refine_steps: int = 0, mirror_average: bool = False,
+                 repair_folds: bool = False):
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise ValueError(f"threads must be a positive int or None, got {threads!r}")
         if not isinstance(cache_size, int) or cache_size < 0:
             raise ValueError(f"cache_size must be an int >= 0, got {cache_size!r}")
         self.refine_steps = refine_steps
         self.mirror_average = mirror_average
+        self.repair_folds = repair_folds
         self._models_dir = resolve_models_dir(models_dir)
         self._threads = threads or default_threads()
         self._cache_size = cache_size
@@ -240,6 +250,17 @@ class SketchEngine:
             raise ValueError(f"mirror_average must be a bool, got {on!r}")
         self._mirror_average = bool(on)
 
+    @property
+    def repair_folds(self) -> bool:
+        """Whether :meth:`predict` repairs self-intersections of the prediction (module doc)."""
+        return self._repair_folds
+
+    @repair_folds.setter
+    def repair_folds(self, on: bool) -> None:
+        if not isinstance(on, (bool, np.bool_)):
+            raise ValueError(f"repair_folds must be a bool, got {on!r}")
+        self._repair_folds = bool(on)
+
     def load(self) -> None:
         """Create and validate both sessions now (otherwise done on the first prediction).
 
@@ -275,9 +296,9 @@ class SketchEngine:
         with self._cache_lock:
             self._cache.clear()
 
-    def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool) -> _Entry:
+    def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool, repair: bool) -> _Entry:
         gen, pred = self._generator, self._predictor
-        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble"), 0.0)
+        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble", "repair"), 0.0)
         meshes, kept = [], None
         for flip in (False, True) if mirror else (False,):
             x = (raster[:, ::-1] if flip else raster)[None, None].astype(np.float32)
@@ -305,9 +326,20 @@ class SketchEngine:
             t0 = time.perf_counter()
             mesh = Mesh(mirror_average(meshes[0].vertices, meshes[1].vertices).astype(np.float32), mesh.faces)
             stages["assemble"] += (time.perf_counter() - t0) * 1e3
+        warnings: tuple[str, ...] = ()
+        if repair:
+            from engine.postprocess import repair_self_intersections
+
+            t0 = time.perf_counter()
+            fixed = repair_self_intersections(mesh)
+            stages["repair"] = (time.perf_counter() - t0) * 1e3
+            mesh = fixed.mesh
+            if fixed.after:
+                warnings = (f"the surface still crosses itself ({fixed.after} face pairs, {fixed.before} before "
+                            f"the fold repair)",)
         kept.setflags(write=False)
         timings.update(stages)
-        return _Entry(mesh, kept)
+        return _Entry(mesh, kept, warnings=warnings)
 
     def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:
         """Predict a mesh from a sketch.
@@ -320,7 +352,7 @@ class SketchEngine:
 
         Returns:
             A :class:`Prediction`; ``cached`` is True when the same raster was seen recently with
-            the same :attr:`mirror_average` setting.
+            the same :attr:`mirror_average` and :attr:`repair_folds` settings.
 
         Raises:
             SketchInputError / EmptySketchError: unusable or blank sketch.
@@ -331,8 +363,8 @@ class SketchEngine:
         raster = to_raster(sketch)
         raster = np.array(raster, dtype=np.float32)
         raster.setflags(write=False)
-        mirror = self._mirror_average
-        key = raster_key(raster) + (":mirror" if mirror else "")
+        mirror, repair = self._mirror_average, self._repair_folds
+        key = raster_key(raster) + (":mirror" if mirror else "") + (":repair" if repair else "")
         timings = {"preprocess": (time.perf_counter() - t0) * 1e3}
         self.load()
         entry = None
@@ -345,14 +377,14 @@ class SketchEngine:
         if cached:
             timings.update({s: 0.0 for s in STAGES[1:]})
         else:
-            entry = self._run_models(raster, timings, mirror)
+            entry = self._run_models(raster, timings, mirror, repair)
             if self._cache_size:
                 with self._cache_lock:
                     self._cache[key] = entry
                     self._cache.move_to_end(key)
                     while len(self._cache) > self._cache_size:
                         self._cache.popitem(last=False)
-        mesh, warnings = entry.mesh, ()
+        mesh, warnings = entry.mesh, entry.warnings
         timings["refine"] = 0.0
         if steps:
             with self._cache_lock:
@@ -364,7 +396,7 @@ class SketchEngine:
                 with self._cache_lock:
                     entry.refined[steps] = result
             mesh = result.mesh
-            warnings = (result.warning,) if result.warning else ()
+            warnings += (result.warning,) if result.warning else ()
         return Prediction(
             mesh=mesh,
             normals=np.ascontiguousarray(entry.normals_nchw[0].transpose(1, 2, 0)) if want_normals else None,
@@ -373,4 +405,5 @@ class SketchEngine:
             cached=cached,
             warnings=warnings,
             mirror_average=mirror,
+            repair_folds=repair,
         )

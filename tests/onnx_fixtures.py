@@ -108,6 +108,7 @@ def make_predictor(
     *,
     metadata: dict[str, str] | None = None,
     drop_metadata: tuple[str, ...] = (),
+    local_bias: np.ndarray | None = None,
 ) -> onnx.ModelProto:
     """A pooling + Gemm mesh predictor: (N, 3, 64, 64) -> (N, V, 3), (N, 3), V = 10 * 4**level + 2.
 
@@ -116,12 +117,13 @@ def make_predictor(
         seed: RNG seed of the weights.
         metadata: entries that replace or extend the default metadata (e.g. a wrong template_level).
         drop_metadata: keys removed from the metadata.
+        local_bias: (V, 3) offsets added to every prediction (e.g. to fold the mesh); zeros when None.
     """
     V = 10 * 4**level + 2
     rng = np.random.default_rng(seed + 1000)
     feat = 3 * 8 * 8
     w_local = (rng.standard_normal((feat, V * 3)) * PREDICTOR_WEIGHT_STD).astype(np.float32)
-    b_local = np.zeros(V * 3, np.float32)
+    b_local = np.zeros(V * 3, np.float32) if local_bias is None else np.asarray(local_bias, np.float32).reshape(V * 3)
     w_global = (rng.standard_normal((feat, 3)) * PREDICTOR_WEIGHT_STD).astype(np.float32)
     b_global = np.zeros(3, np.float32)
     nodes = [
@@ -166,11 +168,25 @@ def write_model(model: onnx.ModelProto, path: str | Path) -> Path:
     return path
 
 
-def write_fixture_models(folder: str | Path, level: int = 3, seed: int = 0) -> Path:
-    """Write ``generator.onnx`` and ``mesh_predictor.onnx`` into ``folder``; returns the folder."""
+def fold_offsets(level: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """(V, 3) offsets that fold a template sphere (its +z cap pushed down through its -z side, a little off the
+    template's symmetry so no vertex lands on another), and the cap's (V,) mask."""
+    from engine.icosphere import icosphere
+
+    t = icosphere(level, radius).vertices.astype(np.float64)
+    cap = t[:, 2] > 0.7 * radius
+    off = np.zeros_like(t)
+    off[cap] = [0.05 * radius, 0.0, -1.5 * radius]
+    return off, cap
+
+
+def write_fixture_models(folder: str | Path, level: int = 3, seed: int = 0, *, fold: bool = False) -> Path:
+    """Write ``generator.onnx`` and ``mesh_predictor.onnx`` into ``folder``; returns the folder. ``fold``: the
+    predictor folds every mesh (:func:`fold_offsets`), so its surface crosses itself."""
     folder = Path(folder)
     write_model(make_generator(seed), folder / C.GENERATOR_FILE)
-    write_model(make_predictor(level, seed), folder / C.PREDICTOR_FILE)
+    bias = fold_offsets(level, TEMPLATE_RADIUS)[0] if fold else None
+    write_model(make_predictor(level, seed, local_bias=bias), folder / C.PREDICTOR_FILE)
     return folder
 
 

@@ -63,6 +63,24 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
     assert not records[0]["mirror_average"]
 
 
+def test_bench_refine_repair_folds(data, tmp_path):
+    """--repair-folds runs the engine's fold repair on every prediction: on models that fold every mesh the unrefined
+    meshes' self-intersections go to zero, and the records say the repair was on."""
+    models = write_fixture_models(tmp_path / "models", fold=True)
+    from sketchmesh.cli import main
+
+    counts = {}
+    for extra in ([], ["--repair-folds"]):
+        out = tmp_path / f"out{len(extra)}"
+        assert main(["bench", "refine", "--data", str(data), "--out", str(out), "--models", str(models),
+                     "--steps", "0", "--styles", "clean", "--max-samples", "2", "--quiet", *extra]) == 0
+        rec = json.loads((out / "refine.json").read_text())["records"][0]
+        assert rec["repair_folds"] is bool(extra)
+        counts[bool(extra)] = rec["self_intersections"]
+        assert f"fold repair {'on' if extra else 'off'}" in (out / "refine.md").read_text()
+    assert counts[False] > 20 and counts[True] == 0
+
+
 def test_bench_refine_true_camera_diagnostic(data, tmp_path):
     """--true-camera adds the voxel IoU of the refinement done in each view's true camera: at N = 0 the
     mesh is the unrefined one whichever camera, so it equals the plain voxel IoU; without the flag the

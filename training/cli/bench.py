@@ -216,6 +216,8 @@ def register(commands, bench) -> None:
     p.add_argument("--no-intersections", action="store_true", help="skip counting self-intersections (faster)")
     p.add_argument("--mirror-average", action="store_true",
                    help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
+    p.add_argument("--repair-folds", action="store_true",
+                   help="the engine's fold repair on (self-intersections smoothed away where they are), as in the app")
     p.add_argument("--true-camera", action="store_true",
                    help="also refine in each view's true framed camera and report its voxel IoU: a diagnostic of what "
                         "the engine's estimated camera costs (the engine cannot know the true one)")

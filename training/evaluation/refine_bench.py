@@ -16,6 +16,8 @@ categories:
 * ``refine_ms_p50`` and ``latency_ms_p50`` -- the refinement alone and sketch -> refined mesh
   (generator + predictor + refinement), medians over the sketches, on ``--threads`` threads;
 * ``self_intersections`` (mean count) and ``warnings`` (how many sketches fell back);
+* with ``--repair-folds``, the engine's fold repair (:func:`engine.postprocess.repair_self_intersections`) runs
+  on every prediction before the refinement, as in the app; its time counts in the latency;
 * with ``--true-camera``, ``voxel_iou_true_camera``: the same refinement done in the view's *true*
   framed camera instead of the estimated one -- a diagnostic the engine cannot run (it does not
   know the true shape's framing), which separates what refinement costs in 3D through the
@@ -69,8 +71,10 @@ def run_refine_bench(
     progress: bool = True,
     mirror_average: bool = False,
     true_camera: bool = False,
+    repair_folds: bool = False,
 ) -> list[dict]:
-    """Measure every (style, N); see the module docstring (``mirror_average``: the engine's, as in the app;
+    """Measure every (style, N); see the module docstring (``mirror_average``, ``repair_folds``: the engine's, as in
+    the app;
     ``true_camera``: also refine in the view's true camera, a diagnostic). Returns one record per (style, N)."""
     from tqdm import tqdm
 
@@ -94,7 +98,8 @@ def run_refine_bench(
     unknown = [s for s in styles if s not in STYLES]
     if unknown:
         raise RefineBenchError(f"unknown style(s) {unknown}; choose from {', '.join(STYLES)}")
-    engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average)
+    engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average,
+                          repair_folds=repair_folds)
     engine.load()
     gt: dict[tuple[str, str], tuple[Mesh, np.ndarray]] = {}
     records: list[dict] = []
@@ -169,6 +174,7 @@ def run_refine_bench(
                 "samples": len(rs),
                 "threads": threads,
                 "mirror_average": bool(mirror_average),
+                "repair_folds": bool(repair_folds),
             })
     return records
 
@@ -228,12 +234,13 @@ def main_refine_bench(args: argparse.Namespace) -> int:
                                threads=args.threads, styles=tuple(args.styles),
                                self_intersections=not args.no_intersections, progress=not args.quiet,
                                voxel_surface=not args.voxel_centres, mirror_average=args.mirror_average,
-                               true_camera=args.true_camera)
+                               true_camera=args.true_camera, repair_folds=args.repair_folds)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(records)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     loads = (f"mirror averaging {'on' if args.mirror_average else 'off'}; "
+             f"fold repair {'on' if args.repair_folds else 'off'}; "
              f"load average (1 min) at the start {load_start:.2f}, at the end {load:.2f}")
     atomic_write_text(out / "refine.md", table + f"\n{loads}\n")
     atomic_write_text(out / "refine.json", json.dumps({"records": records, "loadavg_1min": [load_start, load]}, indent=2))
