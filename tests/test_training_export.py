@@ -269,6 +269,24 @@ def test_gallery_writes_one_row_per_category(run_dir, exported, tmp_path, capsys
     assert rc != 0 and "no test shapes" in capsys.readouterr().err
 
 
+def test_gallery_repair_folds_shows_the_repaired_meshes(run_dir, tmp_path, capsys):
+    from onnx_fixtures import write_fixture_models
+    from PIL import Image
+
+    from sketchmesh.cli import main
+
+    folding = write_fixture_models(tmp_path / "folding", fold=True)  # every mesh crosses itself
+    images = []
+    for extra in ([], ["--repair-folds"]):
+        out = tmp_path / f"gallery{len(extra)}.png"
+        rc = main(["gallery", "--data", str(run_dir.parent / "data"), "--models", str(folding), "-o", str(out),
+                   "--azimuth", "0", "--turn", "15", "--size", "48", "--threads", "1", *extra])
+        assert rc == 0, capsys.readouterr().err
+        images.append(np.asarray(Image.open(out), np.float64))
+    assert images[0].shape == images[1].shape
+    assert 0 < np.abs(images[1] - images[0]).mean() < 0.1 * 255  # same sketches and normals; the meshes moved
+
+
 def test_gallery_picks_the_nearest_elevation_then_azimuths():
     from training.evaluation.gallery import pick_views
 

@@ -1094,6 +1094,15 @@ EOF
         --views 4 --max-samples 39 --threads 2 --out "$OUT14/final/compare" ;;
     refine-v14)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-v14)
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$OUT14/final/refine" ;;
+    repair-v14)  # the fold repair on the bundled pair as the app runs it (mirror averaging on): bench refine at N = 0
+      # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
+        --out "$OUT14/final/repair/off"
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
+        --out "$OUT14/final/repair/on" ;;
+    gallery-repair-v14)  # the gallery as the app predicts now, fold repair on (gallery-v14 without it)
+      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
+        -o "$OUT14/final/gallery_repair.png" ;;
     gallery-v14)  # the gallery as the app predicts with the shipped pair (after ship-v14)
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$OUT14/final/gallery.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --elevation 0 --azimuth 90 \
@@ -1118,6 +1127,17 @@ EOF
       export_pair "$RUNS14/v15_fold" "$OUT14/fold" "$OUT8/models_fifth/generator.onnx"
       sketchmesh bench refine --data "$DATA2" --models "$OUT14/fold/models_fp32" --max-samples "$SAMPLES2" --mirror-average \
         --steps 0 --styles clean --out "$OUT14/fold/refine" ;;
+    predictor-v15-control)  # v15_fold's control at equal cost: v14_big_mc trained on by the same schedule (V15_ITERS,
+      # V15_MINUTES, two threads) with the paper's dihedral weight, so what the 5x weight does is not confused with more training
+      PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" train7 \
+        "$RUNS14/v14_big_mc" "$RUNS14/v15_control" "${V15_ITERS:-3500}" "${V15_MINUTES:-25}" 2 ;;
+    val-v15-all|val-strong-v15-all|val-side-v15-all)  # v15_fold against its control and the tenth (v14_big_mc), +mirror
+      local c=${1%-all}; eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT14/fold/val3_${EVAL_NAME#eval_}" "$RUNS14/v15_fold" "$RUNS14/v15_control" "$RUNS14/v14_big_mc" ;;
+    folds-v15-control)  # the control's folds, counted as folds-v15 counts v15_fold's (exported into OUT14/fold_control)
+      export_pair "$RUNS14/v15_control" "$OUT14/fold_control" "$OUT8/models_fifth/generator.onnx"
+      sketchmesh bench refine --data "$DATA2" --models "$OUT14/fold_control/models_fp32" --max-samples "$SAMPLES2" \
+        --mirror-average --steps 0 --styles clean --out "$OUT14/fold_control/refine" ;;
     refine-oracle-v14)  # what the app's outline refinement costs in 3D through its estimated camera: refine-v13 at
       # N = 0 and 3 with each refinement also done in the view's true framed camera (a diagnostic; bench refine --true-camera)
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --true-camera \

@@ -268,5 +268,7 @@ def register(commands, bench) -> None:
     g.add_argument("--size", type=int_in(32, 1024), default=160, help="render size of the mesh columns")
     g.add_argument("--mirror-average", action="store_true",
                    help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
+    g.add_argument("--repair-folds", action="store_true",
+                   help="the engine's fold repair on (self-intersections smoothed away where they are), as in the app")
     g.add_argument("--threads", type=positive_int, default=2)
     g.set_defaults(func=_cmd_gallery)

@@ -65,7 +65,8 @@ def pick_views(azimuths, elevations, azimuth: float, elevation: float, turn: flo
 
 def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, *, per_category: int = 1,
                  categories: tuple[str, ...] = (), azimuth: float = 45.0, elevation: float = 30.0,
-                 turn: float = 90.0, size: int = 160, threads: int = 2, mirror_average: bool = False) -> Path:
+                 turn: float = 90.0, size: int = 160, threads: int = 2, mirror_average: bool = False,
+                 repair_folds: bool = False) -> Path:
     """Write the gallery PNG (see the module docstring); angles in degrees."""
     import matplotlib
 
@@ -96,7 +97,8 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
     rows = [row for cat in sorted(chosen) for row in chosen[cat]]
     if not rows:
         raise GalleryError(f"no test shapes in {data_dir}" + (f" for categories {', '.join(categories)}" if categories else ""))
-    engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average)
+    engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average,
+                          repair_folds=repair_folds)
     fig, axes = plt.subplots(len(rows), 5, figsize=(2.0 * 5, 2.0 * len(rows)), dpi=100, squeeze=False)
     for r, (i, second) in enumerate(rows):
         item = test[i]
@@ -143,7 +145,8 @@ def main_gallery(args: argparse.Namespace) -> int:
     models = resolve_models_dir(getattr(args, "models", None))
     path = make_gallery(models, args.data, args.output, per_category=args.per_category,
                         categories=tuple(args.categories or ()), azimuth=args.azimuth, elevation=args.elevation,
-                        turn=args.turn, size=args.size, threads=args.threads, mirror_average=args.mirror_average)
+                        turn=args.turn, size=args.size, threads=args.threads, mirror_average=args.mirror_average,
+                        repair_folds=args.repair_folds)
     print(f"wrote {path}")
     return 0
 
