@@ -144,8 +144,9 @@ MIRROR_BY_DEFAULT = True
 left to right (engine.pipeline), which raises voxel IoU from sketches for a second pass of both networks
 (model card, "Mirror averaging")."""
 REPAIR_BY_DEFAULT = True
-"""Whether "Repair folds" starts checked: where the predicted surface crosses itself, it is smoothed just there until
-it does not, so the exported mesh has no self-intersections (README, "Repairing folds")."""
+"""Whether "Repair folds on export" starts checked: where the mesh's surface crosses itself (thin parts' folds), the
+exported mesh is smoothed just there until it does not (README, "Repairing folds"); the live preview is not repaired,
+which would cost tens of milliseconds a stroke on folded meshes."""
 
 
 def format_timings(timings_ms: dict[str, float], cached: bool = False) -> str:
@@ -359,15 +360,15 @@ class MainWindow(QMainWindow):
         self.actions["mirror"].setToolTip("Also read the drawing flipped left to right and average the two meshes "
                                           "(steadier shapes, about twice the networks' time)")
         self.actions["mirror"].setChecked(MIRROR_BY_DEFAULT)
-        a("repair", "Repair f&olds", self._toggle_engine_option, checkable=True)
-        self.actions["repair"].setToolTip("Where the mesh's surface crosses itself, smooth it just there until it does "
-                                          "not (clean meshes for printing and booleans)")
+        a("repair", "Repair f&olds on export", self._toggle_repair, checkable=True)
+        self.actions["repair"].setToolTip("Where the exported mesh's surface crosses itself, smooth it just there "
+                                          "until it does not (clean meshes for printing and booleans)")
         self.actions["repair"].setChecked(REPAIR_BY_DEFAULT)
         a("about", "&About Sketchmesh", self.about)
 
         mb = self.menuBar()
         m = mb.addMenu("&File")
-        for k in ("new", "open", "save", "save_as", "export_png", "export_mesh", None, "load_models", "remove_background", None, "quit"):
+        for k in ("new", "open", "save", "save_as", "export_png", "export_mesh", "repair", None, "load_models", "remove_background", None, "quit"):
             m.addSeparator() if k is None else m.addAction(self.actions[k])
         m = mb.addMenu("&Edit")
         for k in ("undo", "redo", None, "clear"):
@@ -376,7 +377,7 @@ class MainWindow(QMainWindow):
         for k in ("pen", "eraser"):
             m.addAction(self.actions[k])
         m = mb.addMenu("&View")
-        for k in [f"view_{p}" for p in VIEW_PRESETS] + [None, "reset_view", "wireframe", "guide", "refine", "mirror", "repair"]:
+        for k in [f"view_{p}" for p in VIEW_PRESETS] + [None, "reset_view", "wireframe", "guide", "refine", "mirror"]:
             m.addSeparator() if k is None else m.addAction(self.actions[k])
         m = mb.addMenu("&Help")
         m.addAction(self.actions["about"])
@@ -434,14 +435,14 @@ class MainWindow(QMainWindow):
         self.settings.wireframe = bool(on)
 
     def _toggle_engine_option(self, on: bool) -> None:
-        """Refine to outline, Mirror average or Repair folds toggled: tell the engine, predict the sketch again."""
+        """Refine to outline or Mirror average toggled: tell the engine, predict the current sketch again."""
         self._apply_engine_options()
         if not self.canvas.is_empty:
             self._request_inference()
 
     def _apply_engine_options(self) -> None:
-        """Tell the engine what the toggles ask for: refinement steps (engine/refine.py), mirror averaging and the
-        fold repair (engine/pipeline.py). An engine without the option (a test double) is left alone."""
+        """Tell the engine what the toggles ask for: refinement steps (engine/refine.py), mirror averaging
+        (engine/pipeline.py). An engine without the option (a test double) is left alone."""
         from engine.refine import DEFAULT_STEPS  # noqa: PLC0415
 
         if self.engine is None:
@@ -450,8 +451,9 @@ class MainWindow(QMainWindow):
             self.engine.refine_steps = DEFAULT_STEPS if self.actions["refine"].isChecked() else 0
         if hasattr(self.engine, "mirror_average"):
             self.engine.mirror_average = self.actions["mirror"].isChecked()
-        if hasattr(self.engine, "repair_folds"):
-            self.engine.repair_folds = self.actions["repair"].isChecked()
+
+    def _toggle_repair(self, on: bool) -> None:
+        self.show_message("Exports repair folds" if on else "Exports keep the mesh as predicted, folds included")
 
     def _toggle_guide(self, on: bool) -> None:
         self.canvas.set_show_guide(on)
@@ -772,13 +774,31 @@ class MainWindow(QMainWindow):
             QMessageBox.warning(self, "Cannot export mesh", msg)
             return False
         mesh = self._last_prediction.mesh  # immutable: safe to hand to the writer thread
+        repair = self.actions["repair"].isChecked()
         self._exports_running += 1
         self.show_message(f"Exporting {p.name}...")
 
-        def done(_result: object) -> None:
+        def write() -> tuple[int, int]:
+            """On the worker: the fold repair (when asked), then the atomic write; (crossings before, after)."""
+            out, counts = mesh, (0, 0)
+            if repair:
+                from engine.postprocess import repair_self_intersections  # noqa: PLC0415
+
+                fixed = repair_self_intersections(mesh)
+                out, counts = fixed.mesh, (fixed.before, fixed.after)
+            export_mesh(out, p)
+            return counts
+
+        def done(result: object) -> None:
             self._exports_running -= 1
             self.settings.last_export_dir = str(p.parent)
-            self.show_message(f"Exported {p.name}")
+            before, after = result if isinstance(result, tuple) else (0, 0)
+            note = ""
+            if after:
+                note = f" ({after} crossing face pairs left of {before}: the fold repair ran out of rounds)"
+            elif before:
+                note = f" (folds repaired: {before} crossing face pairs)"
+            self.show_message(f"Exported {p.name}{note}")
             self.exportFinished.emit(str(p), "")
 
         def failed(message: str) -> None:
@@ -788,7 +808,7 @@ class MainWindow(QMainWindow):
                 QMessageBox.warning(self, "Cannot export mesh", message)
             self.exportFinished.emit(str(p), message)
 
-        self.jobs.submit(lambda: export_mesh(mesh, p), done, failed)
+        self.jobs.submit(write, done, failed)
         return True
 
     @property

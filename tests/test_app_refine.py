@@ -81,23 +81,40 @@ def test_mirror_toggle_sets_the_engine_and_predicts_again(qtbot, window, models)
     assert np.abs(meshes[True] - meshes[False]).max() > 1e-3
 
 
-def test_repair_toggle_sets_the_engine_and_predicts_again(qtbot, window):
-    w = window
-    act = w.actions["repair"]
-    assert act.isCheckable() and act.isChecked() == REPAIR_BY_DEFAULT
-    assert w.engine.repair_folds == REPAIR_BY_DEFAULT
-    if not act.isChecked():
-        act.trigger()
-    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-        draw_stroke(w.canvas, line_points(60, 80, 300, 300))
-    first = w.last_prediction
-    assert first.repair_folds and first.timings_ms["repair"] > 0.0 and "repair" in w.timing_label.text()
-    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-        act.trigger()  # off: predicted again without the repair
-    off = w.last_prediction
-    assert not w.engine.repair_folds and not off.repair_folds and not off.cached and off.timings_ms["repair"] == 0.0
-    with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
-        act.trigger()  # on again: the repaired mesh of the same drawing, from the cache
-    again = w.last_prediction
-    assert w.engine.repair_folds and again.repair_folds and again.cached
-    np.testing.assert_array_equal(again.mesh.vertices, first.mesh.vertices)
+def test_exports_repair_folds_unless_told_not_to(qtbot, tmp_path):
+    import trimesh
+
+    from engine.mesh import Mesh
+    from engine.postprocess import repair_self_intersections, self_intersections
+
+    folding = write_fixture_models(tmp_path / "folding", fold=True)  # every predicted mesh crosses itself
+    w = MainWindow(models_dir=folding, autosave_dir=tmp_path / "autosave", debounce_ms=10)
+    try:
+        w.show()
+        qtbot.waitExposed(w)
+        act = w.actions["repair"]
+        assert act.isCheckable() and act.isChecked() == REPAIR_BY_DEFAULT
+        if not act.isChecked():
+            act.trigger()
+        with qtbot.waitSignal(w.meshUpdated, timeout=WAIT_MS):
+            draw_stroke(w.canvas, line_points(60, 80, 300, 300))
+        shown = w.last_prediction.mesh
+        assert self_intersections(shown) > 20  # the preview is the prediction, folds included
+        exported = {}
+        for on in (True, False):
+            if act.isChecked() != on:
+                act.trigger()
+            path = tmp_path / f"mesh_{on}.obj"
+            with qtbot.waitSignal(w.exportFinished, timeout=WAIT_MS) as done:
+                assert w.export_mesh_to(path)
+            assert done.args == [str(path), ""], w.status_text()
+            loaded = trimesh.load(path, force="mesh", process=False)
+            exported[on] = Mesh(np.asarray(loaded.vertices), np.asarray(loaded.faces))
+            assert ("folds repaired" in w.status_text()) == on
+        assert self_intersections(exported[True]) == 0
+        np.testing.assert_allclose(exported[True].vertices, repair_self_intersections(shown).mesh.vertices, atol=1e-5)
+        np.testing.assert_allclose(exported[False].vertices, shown.vertices, atol=1e-5)
+        assert w.last_prediction.mesh is shown  # exporting never re-predicts
+    finally:
+        w.close()
+        w.deleteLater()

@@ -59,6 +59,11 @@
 # The larger predictor trained on with the mirror-consistency term (into RUNS14 [runs/v14] and OUT14 [out/v14]; needs
 #   runs/v13/v13_big_mc): predictor-v14-big, checked against the ninth on the validation split (val-*-v14-big).
 #   What the outline refinement costs in 3D through its estimated camera (refine-oracle-v14, a diagnostic).
+# The eleventh pair (into RUNS14 and OUT15 [out/v15]; needs runs/v14/v14_big_mc): the tenth trained on with five times
+#   the dihedral weight against the folds (predictor-v15-fold) and, at equal cost, with the paper's weight
+#   (predictor-v15-control), compared on the validation split (val-*-v15-all, folds-v15, folds-v15-control; the choice
+#   in OUT14/fold/choice.txt); all-v15 measures, exports, times and ships the control (eval-*-v15 export-v15 cost-v15
+#   tradeoff-v15 compare-v15 ship-v15 refine-v15 repair-v15 gallery-v15 docs-v2).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -117,6 +122,7 @@ RUNS13=${RUNS13:-runs/v13}
 OUT13=${OUT13:-out/v13}
 RUNS14=${RUNS14:-runs/v14}
 OUT14=${OUT14:-out/v14}
+OUT15=${OUT15:-out/v15}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1114,6 +1120,48 @@ EOF
       SHIP_OUT=$OUT14/final
       for s in eval-v14 eval-strong-v14 eval-side-v14 eval-gt-v14 export-v14 cost-v14 tradeoff-v14 compare-v14 ship-v14 \
                refine-v14 gallery-v14 docs-v2; do step "$s"; done ;;
+    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15)  # the eleventh (v15_control) against the tenth (v14_big_mc), plain
+      # and +mirror, test split (after the choice on the validation split, OUT14/fold/choice.txt)
+      eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
+      eval_against test "$OUT15/final/$EVAL_NAME" "$RUNS14/v15_control" "$RUNS14/v14_big_mc" ;;
+    export-v15)  # v15_control as float32 and int8, beside the generator file
+      export_pair "$RUNS14/v15_control" "$OUT15/final" "$OUT8/models_fifth/generator.onnx" ;;
+    cost-v15)  # every stage of the app's engine, plain and +mirror, the eleventh pair as shipped (int8 predictor; the
+      # variant "fp32" is the models as given) (run it alone: it times)
+      mkdir -p "$OUT15"
+      sketchmesh bench engine --models "$OUT15/final/models_int8" --threads 2 --variants fp32,fp32+mirror --runs 50 \
+        --json "$OUT15/engine_v15.json" ;;
+    tradeoff-v15)  # error against run time: the eleventh pair at each precision, plain and +mirror, and template level,
+      # int8-predictor+mirror marked as what the app runs (run it alone: it times)
+      sketchmesh bench tradeoff --data "$DATA2" --variant "v15=$OUT15/final/models_fp32" \
+        --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
+        --bundled v15:int8-predictor+mirror --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT15/final/tradeoff" ;;
+    compare-v15)  # the app's own path: the tenth (bundled at 074b7ab) and the eleventh as shipped (int8 predictor), both
+      # +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
+      models_from_git 074b7ab "$OUT15/models_tenth"
+      sketchmesh eval --models "$OUT15/models_tenth" --models "$OUT15/final/models_int8" --mirror-average --data "$DATA2" \
+        --views 4 --max-samples 39 --threads 2 --out "$OUT15/final/compare" ;;
+    ship-v15)  # the eleventh pair with the int8 predictor becomes the app's bundled models
+      SHIP_MODELS=$OUT15/final/models_int8 step ship-v2 ;;
+    refine-v15)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-v15)
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$OUT15/final/refine" ;;
+    repair-v15)  # the fold repair on the shipped pair (after ship-v15), mirror averaged: bench refine at N = 0 and 3 with
+      # the repair off and on, one after the other on the same idle machine (run it alone: it times)
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
+        --out "$OUT15/final/repair/off"
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
+        --out "$OUT15/final/repair/on" ;;
+    gallery-v15)  # the gallery as the app shows it with the shipped pair (after ship-v15), and as it exports (folds
+      # repaired)
+      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$OUT15/final/gallery.png"
+      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --elevation 0 --azimuth 90 \
+        -o "$OUT15/final/gallery_side.png"
+      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
+        -o "$OUT15/final/gallery_repair.png" ;;
+    all-v15)  # after predictor-v15-control and the choice on the validation split: measured, exported, timed, shipped
+      SHIP_OUT=$OUT15/final
+      for s in eval-v15 eval-strong-v15 eval-side-v15 eval-gt-v15 export-v15 cost-v15 tradeoff-v15 compare-v15 ship-v15 \
+               refine-v15 repair-v15 gallery-v15 docs-v2; do step "$s"; done ;;
     predictor-v15-fold)  # the tenth's folds: v14_big_mc trained on with the dihedral smoothness weight at V15_M [0.05]
       # (5x the paper's 0.01), the same recipe and term otherwise, alone on two threads (V15_ITERS [3500], V15_MINUTES [25])
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50} --lambda-m ${V15_M:-0.05}" train7 \
