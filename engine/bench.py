@@ -38,11 +38,33 @@ EXPORT_SUFFIX = ".glb"
 """Format timed by the ``export`` stage (the app's default export)."""
 
 
+def _float32_weights(model) -> None:
+    """In place: weights stored in float16 behind a ``Cast`` to float32 (``sketchmesh export --quantize fp16``) become
+    float32 initialisers again, so that quantisation finds the weights where it looks for them."""
+    from onnx import TensorProto, numpy_helper
+
+    inits = {i.name: i for i in model.graph.initializer}
+    drop_nodes, drop_inits, new = [], set(), []
+    for n in model.graph.node:
+        if (n.op_type == "Cast" and len(n.input) == 1 and n.input[0] in inits
+                and inits[n.input[0]].data_type == TensorProto.FLOAT16
+                and any(a.name == "to" and a.i == TensorProto.FLOAT for a in n.attribute)):
+            new.append(numpy_helper.from_array(numpy_helper.to_array(inits[n.input[0]]).astype(np.float32), n.output[0]))
+            drop_nodes.append(n)
+            drop_inits.add(n.input[0])
+    for n in drop_nodes:
+        model.graph.node.remove(n)
+    kept = [i for i in model.graph.initializer if i.name not in drop_inits]
+    del model.graph.initializer[:]
+    model.graph.initializer.extend(kept + new)
+
+
 def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
     """Dynamic int8 quantisation of one model (weights int8, activations quantised at run time).
 
     ``graph.value_info`` is cleared first (dynamo-exported models otherwise fail shape
-    inference, see MEASUREMENTS.md); metadata is kept and ``quantization`` set to ``int8-dynamic``.
+    inference, see MEASUREMENTS.md), and float16-stored weights are made float32 initialisers;
+    metadata is kept and ``quantization`` set to ``int8-dynamic``.
 
     Raises:
         MissingExtraError: the ``onnx`` package is not installed.
@@ -61,6 +83,7 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
         try:
             model = onnx.load(str(src))
             del model.graph.value_info[:]
+            _float32_weights(model)
             cleared = Path(tmp) / "input.onnx"
             onnx.save(model, str(cleared))
             root.setLevel(logging.ERROR)  # quantize_dynamic warns on the root logger about pre-processing

@@ -19,7 +19,7 @@ Metadata (``metadata_props`` of each model, all strings)
     ``conventions`` (= CONVENTIONS_ID); the mesh predictor also carries
     ``template_level`` (e.g. "3") and ``template_radius``; the generator carries
     ``base_channels`` and ``generator_arch`` ("resize" or "pix2pix"; absent from exports that
-    predate the option, which are "pix2pix"). ``quantization`` ("none" or "int8-dynamic") is optional.
+    predate the option, which are "pix2pix"). ``quantization`` ("none", "int8-dynamic" or "fp16-weights") is optional.
     The engine only reads the required keys and the predictor's template: the others describe the
     model (the graph itself is what runs) and may be absent.
 """

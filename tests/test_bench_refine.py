@@ -75,9 +75,10 @@ def test_bench_refine_repair_folds(data, tmp_path):
         assert main(["bench", "refine", "--data", str(data), "--out", str(out), "--models", str(models),
                      "--steps", "0", "--styles", "clean", "--max-samples", "2", "--quiet", *extra]) == 0
         rec = json.loads((out / "refine.json").read_text())["records"][0]
-        assert rec["repair_folds"] is bool(extra)
+        assert rec["repair_folds"] is bool(extra) and (rec["repair_ms_p50"] > 0) == bool(extra)
+        assert rec["repair_ms_p50"] <= rec["repair_ms_p90"] <= rec["repair_ms_max"]
         counts[bool(extra)] = rec["self_intersections"]
-        assert f"fold repair {'on' if extra else 'off'}" in (out / "refine.md").read_text()
+        assert ("fold repair on (clean sketches" if extra else "fold repair off") in (out / "refine.md").read_text()
     assert counts[False] > 20 and counts[True] == 0
 
 

@@ -48,7 +48,7 @@ def trained(tmp_path_factory) -> tuple[Path, Path]:
 def exported(trained, tmp_path_factory) -> dict[str, Path]:
     _, run = trained
     out = {}
-    for quant in ("none", "int8"):
+    for quant in ("none", "int8", "fp16"):
         out[quant] = tmp_path_factory.mktemp(f"models_{quant}")
         export_run(run, out[quant], quantize=quant)
     return out
@@ -93,6 +93,20 @@ def test_int8_import_is_within_the_int8_tolerance_of_the_original(trained, expor
         for a, b in zip(models["predictor"](normals), original["predictor"](normals)):
             assert np.abs(a.numpy() - b.numpy()).max() <= INT8_TOLERANCE
     assert not (tmp_path / "imp" / "generator").exists()
+
+
+def test_fp16_import_is_the_exported_network_with_half_precision_weights(trained, exported, tmp_path):
+    from training.export.to_onnx import FP16_TOLERANCE
+
+    data, run = trained
+    (rep,) = import_models(exported["fp16"], tmp_path / "imp", data_dir=str(data), roles=("predictor",))
+    assert rep.quantization == "fp16-weights" and rep.max_abs_error <= 1e-4  # the file's own weights: float precision
+    _, original, _ = load_run(run)
+    _, models, _ = load_run(tmp_path / "imp" / "predictor")
+    _, normals = _inputs(data)
+    with torch.no_grad():
+        for a, b in zip(models["predictor"](normals), original["predictor"](normals)):
+            assert 0 < np.abs(a.numpy() - b.numpy()).max() <= FP16_TOLERANCE
 
 
 def test_batch_norms_compute_the_same_function_in_train_mode_on_the_calibration_batch(trained, exported, tmp_path):

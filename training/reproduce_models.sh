@@ -1124,25 +1124,31 @@ EOF
       # and +mirror, test split (after the choice on the validation split, OUT14/fold/choice.txt)
       eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
       eval_against test "$OUT15/final/$EVAL_NAME" "$RUNS14/v15_control" "$RUNS14/v14_big_mc" ;;
-    export-v15)  # v15_control as float32 and int8, beside the generator file
-      export_pair "$RUNS14/v15_control" "$OUT15/final" "$OUT8/models_fifth/generator.onnx" ;;
-    cost-v15)  # every stage of the app's engine, plain and +mirror, the eleventh pair as shipped (int8 predictor; the
-      # variant "fp32" is the models as given) (run it alone: it times)
+    export-v15)  # v15_control as float32, int8 and with float16-stored weights (what ships), beside the generator file
+      export_pair "$RUNS14/v15_control" "$OUT15/final" "$OUT8/models_fifth/generator.onnx"
+      rm -rf "$OUT15/final/models_fp16"
+      sketchmesh export "$RUNS14/v15_control" -o "$OUT15/final/models_fp16" --quantize fp16
+      cp "$OUT8/models_fifth/generator.onnx" "$OUT15/final/models_fp16/" ;;
+    cost-v15)  # every stage of the app's engine, plain and +mirror, the eleventh pair as shipped (float16-stored predictor
+      # weights; the variant "fp32" is the models as given) (run it alone: it times)
       mkdir -p "$OUT15"
-      sketchmesh bench engine --models "$OUT15/final/models_int8" --threads 2 --variants fp32,fp32+mirror --runs 50 \
+      sketchmesh bench engine --models "$OUT15/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
         --json "$OUT15/engine_v15.json" ;;
-    tradeoff-v15)  # error against run time: the eleventh pair at each precision, plain and +mirror, and template level,
-      # int8-predictor+mirror marked as what the app runs (run it alone: it times)
+    tradeoff-v15)  # error against run time: the eleventh pair at each precision, plain and +mirror, and template level;
+      # v15-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3 marked as
+      # what the app runs (run it alone: it times)
       sketchmesh bench tradeoff --data "$DATA2" --variant "v15=$OUT15/final/models_fp32" \
+        --variant "v15-fp16w=$OUT15/final/models_fp16" \
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
-        --bundled v15:int8-predictor+mirror --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT15/final/tradeoff" ;;
-    compare-v15)  # the app's own path: the tenth (bundled at 074b7ab) and the eleventh as shipped (int8 predictor), both
-      # +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
+        --bundled v15-fp16w:fp32+mirror --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT15/final/tradeoff" ;;
+    compare-v15)  # the app's own path: the tenth (bundled at 074b7ab) and the eleventh as shipped (float16-stored
+      # predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
       models_from_git 074b7ab "$OUT15/models_tenth"
-      sketchmesh eval --models "$OUT15/models_tenth" --models "$OUT15/final/models_int8" --mirror-average --data "$DATA2" \
+      sketchmesh eval --models "$OUT15/models_tenth" --models "$OUT15/final/models_fp16" --mirror-average --data "$DATA2" \
         --views 4 --max-samples 39 --threads 2 --out "$OUT15/final/compare" ;;
-    ship-v15)  # the eleventh pair with the int8 predictor becomes the app's bundled models
-      SHIP_MODELS=$OUT15/final/models_int8 step ship-v2 ;;
+    ship-v15)  # the eleventh pair with its predictor's weights stored in float16 becomes the app's bundled models: the
+      # float32 export's accuracy and speed in half its file (15 MB; no file over 20 MiB in the repository)
+      SHIP_MODELS=$OUT15/final/models_fp16 step ship-v2 ;;
     refine-v15)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-v15)
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$OUT15/final/refine" ;;
     repair-v15)  # the fold repair on the shipped pair (after ship-v15), mirror averaged: bench refine at N = 0 and 3 with

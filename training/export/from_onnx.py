@@ -95,6 +95,9 @@ class _Graph:
         for n in self.nodes:
             if n.op_type == "Constant" and n.attribute and n.attribute[0].HasField("t"):
                 self.arrays[n.output[0]] = numpy_helper.to_array(n.attribute[0].t)
+        for n in self.nodes:  # weights stored in float16 and cast to float32 on load (export --quantize fp16)
+            if n.op_type == "Cast" and n.input and n.input[0] in self.arrays and n.output[0] not in self.arrays:
+                self.arrays[n.output[0]] = self.arrays[n.input[0]].astype(np.float32)
         self.producer = {o: n for n in self.nodes for o in n.output}
         self.consumers: dict[str, list] = {}
         for n in self.nodes:
@@ -392,7 +395,7 @@ def import_models(models_dir: str | Path, out_dir: str | Path, *, data_dir: str 
             net = load_predictor(graph, cfg, calib)
             models = {"predictor": net}
             extra["batch_norm_calibration"] = calib_note
-            tol = PARITY_TOLERANCE if quant == "none" else INT8_TOLERANCE
+            tol = PARITY_TOLERANCE if quant in ("none", "fp16-weights") else INT8_TOLERANCE  # fp16: the same weights
         sketches, normals64, source = parity_inputs(cfg)
         try:
             session = _session(path.read_bytes())
