@@ -1168,6 +1168,18 @@ EOF
       SHIP_OUT=$OUT15/final
       for s in eval-v15 eval-strong-v15 eval-side-v15 eval-gt-v15 export-v15 cost-v15 tradeoff-v15 compare-v15 ship-v15 \
                refine-v15 repair-v15 gallery-v15 docs-v2; do step "$s"; done ;;
+    control-v15)  # the eleventh predictor's silhouette-only control: predictor-v15-control's run (the same start,
+      # v14_big_mc, recipe, mirror-consistency term, schedule and 3,500 iterations) with the normal weight 0, alone on two
+      # threads (V15_MINUTES [25] at most; resumes)
+      PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" train7 \
+        "$RUNS14/v14_big_mc" "$RUNS14/v15_silhouette" "${V15_ITERS:-3500}" "${V15_MINUTES:-25}" 2 0 ;;
+    eval-control-v15|eval-control-strong-v15|eval-control-side-v15)  # full minus silhouette-only for the eleventh pair
+      # over its last 3,500 iterations: v15_control against control-v15, plain and +mirror, test split
+      local c=${1/control-/}; eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
+      eval_against test "$OUT15/control/$EVAL_NAME" "$RUNS14/v15_control" "$RUNS14/v15_silhouette" ;;
+    gpucarry-v15)  # the slim copy of runs/v14/v15_control a GPU stage starts from (training/gpu_predictor.sh with
+      # INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024" EXTRA="--mirror-consistency 50")
+      gpucarry "$RUNS14/v15_control" ;;
     predictor-v15-fold)  # the tenth's folds: v14_big_mc trained on with the dihedral smoothness weight at V15_M [0.05]
       # (5x the paper's 0.01), the same recipe and term otherwise, alone on two threads (V15_ITERS [3500], V15_MINUTES [25])
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50} --lambda-m ${V15_M:-0.05}" train7 \
@@ -1207,6 +1219,14 @@ EOF
       for i in 1 2 3; do
         local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT13/session/session_$i.json")
         if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
+      done ;;
+    session-v15)  # session-v13 with the eleventh pair and today's defaults (mirror averaging, refinement, the export's
+      # fold repair): three scripted sessions in the real window, reports in OUT15/session (run it alone: it times)
+      mkdir -p "$OUT15/session"
+      local j
+      for j in 1 2 3; do
+        local play=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT15/session/session_$j.json")
+        if [ -n "${DISPLAY:-}" ]; then "${play[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${play[@]}"; fi
       done ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
