@@ -36,7 +36,10 @@
 #   EXTRA="--mirror-consistency 50" (with either call above): more `train mesh` flags; this one keeps the
 #                                                 larger predictor's vertex placement mirror-consistent, which the
 #                                                 app's mirror averaging needs (model card, "Mirror averaging":
-#                                                 predictor-v13-big)
+#                                                 predictor-v13-big); the eleventh pair's predictor:
+#                                                 INPUTS=generated ARCH=... EXTRA="--mirror-consistency 50"
+#                                                 SPECS="gen15 512 4e-4" bash training/gpu_predictor.sh
+#                                                 gpucarry/v15_control (reproduce_models.sh gpucarry-v15)
 #
 # Runs: RUNS/NAME for each "NAME BATCH LR" of SPECS (';' between runs), side by side with the machine's
 # cores split between them. A short concurrent calibration run of each (CAL iterations) sets its cosine
