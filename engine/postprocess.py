@@ -421,6 +421,7 @@ def repair_self_intersections(mesh: Mesh, rounds: int = REPAIR_ROUNDS, steps: in
     v = mesh.vertices.astype(np.float64)
     adj = _adjacency(len(v), f)
     deg = np.asarray(adj.sum(axis=1)).ravel()
+    out_dtype = mesh.vertices.dtype if np.issubdtype(mesh.vertices.dtype, np.floating) else np.float64
     best = (before, mesh)
     done = 0
     while done < rounds:
@@ -432,7 +433,7 @@ def repair_self_intersections(mesh: Mesh, rounds: int = REPAIR_ROUNDS, steps: in
         sub = adj[idx]
         for _ in range(steps):
             v[idx] += float(weight) * ((sub @ v) / deg[idx, None] - v[idx])
-        trial = mesh.with_vertices(v.astype(mesh.vertices.dtype))
+        trial = mesh.with_vertices(v.astype(out_dtype))
         pairs = intersecting_pairs(trial)
         if len(pairs) < best[0]:
             best = (len(pairs), trial)

@@ -70,6 +70,13 @@ def test_when_rounds_run_out_the_fewest_crossings_are_returned_and_counted():
     assert counted.mesh is mesh and (counted.before, counted.after, counted.rounds) == (1, 1, 0)
 
 
+def test_integer_vertices_are_repaired_in_floating_point():
+    mesh, _ = _folded_sphere()
+    m = Mesh(np.round(mesh.vertices * 1000).astype(np.int64), mesh.faces)  # a mesh in integer units
+    res = repair_self_intersections(m)
+    assert res.before > 20 and res.after == 0 and np.issubdtype(res.mesh.vertices.dtype, np.floating)
+
+
 def test_vertices_outside_every_face_stay_put():
     mesh, _ = _folded_sphere(level=2)
     lonely = np.array([[0.0, 0.0, 0.0]])  # inside the fold's path, but in no face
