@@ -196,6 +196,16 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
+play_sessions() {  # three scripted app sessions (sketchmesh --open SAMPLE --report) into folder $1, in the real window
+  # (Xvfb when headless)
+  mkdir -p "$1"
+  local i
+  for i in 1 2 3; do
+    local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$1/session_$i.json")
+    if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
+  done
+}
+
 finetune_pair() {  # $1 a GPU-continued run, $2 the run it is compared with, $3 a prefix: both trained side by side on one
   # thread each with train7 into $3_gpu and $3_cpu, $4 iterations, $5 minutes at most
   [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
@@ -1214,20 +1224,10 @@ EOF
       eval_against test "$OUT13/control/$EVAL_NAME" "$RUNS10/v10_more" "$RUNS10/v10_silhouette" ;;
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
-      mkdir -p "$OUT13/session"
-      local i
-      for i in 1 2 3; do
-        local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT13/session/session_$i.json")
-        if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
-      done ;;
+      play_sessions "$OUT13/session" ;;
     session-v15)  # session-v13 with the eleventh pair and today's defaults (mirror averaging, refinement, the export's
       # fold repair): three scripted sessions in the real window, reports in OUT15/session (run it alone: it times)
-      mkdir -p "$OUT15/session"
-      local j
-      for j in 1 2 3; do
-        local play=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT15/session/session_$j.json")
-        if [ -n "${DISPLAY:-}" ]; then "${play[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${play[@]}"; fi
-      done ;;
+      play_sessions "$OUT15/session" ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
                eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 \
