@@ -792,7 +792,7 @@ class MainWindow(QMainWindow):
         def done(result: object) -> None:
             self._exports_running -= 1
             self.settings.last_export_dir = str(p.parent)
-            before, after = result if isinstance(result, tuple) else (0, 0)
+            before, after = result  # write()'s counts
             note = ""
             if after:
                 note = f" ({after} crossing face pairs left of {before}: the fold repair ran out of rounds)"

@@ -104,7 +104,7 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
 
     Returns:
         dict with sketch, output, timings_ms (preprocess, generator, downsample, predictor,
-        assemble, repair, refine, postprocess, export, stats, total), vertices, faces, watertight,
+        assemble, refine, repair, postprocess, export, stats, total), vertices, faces, watertight,
         winding_consistent, self_intersections, area, volume, cached, normals, refine_steps, mirror_average,
         repair_folds, warnings.
     """

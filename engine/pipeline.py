@@ -13,15 +13,15 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
    and the two meshes are averaged vertex by vertex, the second mirrored back
    (:func:`engine.icosphere.mirror_average`): each stage's time is the sum of its two runs (the
    averaging counts in ``assemble``), the normal image kept is the plain drawing's;
-6. ``repair``      optional (``repair_folds``): where the surface crosses itself, smooth just there until it
-   does not (:func:`engine.postprocess.repair_self_intersections`); one self-intersection check
-   when nothing crosses, 0.0 when off;
-7. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
-   matches the drawing's outline (:mod:`engine.refine`); 0.0 when off.
+6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
+   matches the drawing's outline (:mod:`engine.refine`); 0.0 when off;
+7. ``repair``      optional (``repair_folds``): where the final mesh crosses itself, smooth just there until it
+   does not (:func:`engine.postprocess.repair_self_intersections`, what the app does to the mesh it
+   exports); one self-intersection check when nothing crosses, 0.0 when off.
 
 Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
-cache keyed on a hash of the preprocessed raster and the mirror and repair settings skips stages 2-6
-when none has changed (refined meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
+cache keyed on a hash of the preprocessed raster and the mirror and repair settings skips stages 2-5
+when none has changed (refined and repaired meshes are cached with it, per step count). :meth:`SketchEngine.predict` is
 thread-safe and never touches Qt.
 """
 
@@ -48,7 +48,7 @@ from engine.preprocess import rasterize_strokes, sketch_raster_from_image
 from engine.refine import MAX_STEPS, refine_prediction
 from engine.strokes import Stroke
 
-STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "repair", "refine")
+STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "refine", "repair")
 """Keys of :attr:`Prediction.timings_ms`, in pipeline order."""
 
 DEFAULT_CACHE_SIZE = 16
@@ -69,11 +69,11 @@ class Prediction:
         sketch: (256, 256) float32 in [0, 1], 1 = ink: the raster the generator saw.
         timings_ms: one entry per stage in :data:`STAGES` (milliseconds); on a cache hit the
             skipped stages are 0.0.
-        cached: True when stages 2-6 came from the cache.
+        cached: True when stages 2-5 came from the cache.
         warnings: things the user should know about the result (a refinement that fell back to
             the unrefined mesh says why); empty when all went as asked.
         mirror_average: whether the mesh is the average with the flipped drawing's.
-        repair_folds: whether self-intersections of the prediction were repaired.
+        repair_folds: whether self-intersections of the final mesh were repaired.
     """
 
     mesh: Mesh
@@ -91,7 +91,7 @@ class _Entry:
     mesh: Mesh
     normals_nchw: np.ndarray  # (1, 3, 256, 256) float32 generator output, read-only; HWC only on request
     refined: dict = field(default_factory=dict)  # steps -> engine.refine.RefineResult, under the cache lock
-    warnings: tuple[str, ...] = ()  # what the repair could not do
+    repaired: dict = field(default_factory=dict)  # steps -> engine.postprocess.RepairResult, under the cache lock
 
 
 def downsample_normals(normals_nchw: np.ndarray, size: int = C.PREDICTOR_INPUT_SIZE) -> np.ndarray:
@@ -135,6 +135,12 @@ def assemble_mesh(local_offset: np.ndarray, global_offset: np.ndarray, level: in
     if not np.all(np.isfinite(v)) or np.abs(v).max() > MAX_OFFSET:
         raise ModelError("the mesh predictor produced non-finite or absurd vertex positions (broken model?)")
     return Mesh(v.astype(np.float32), template.faces)
+
+
+def _check_flag(name: str, on) -> bool:
+    if not isinstance(on, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a bool, got {on!r}")
+    return bool(on)
 
 
 def _check_steps(steps) -> int:
@@ -197,7 +203,7 @@ class SketchEngine:
             :attr:`refine_steps` can be changed later, e.g. by the app's toggle).
         mirror_average: also predict from the drawing flipped left to right and average the two
             meshes (module doc); :attr:`mirror_average` can be changed later.
-        repair_folds: repair the prediction where its surface crosses itself (module doc);
+        repair_folds: repair the final mesh where its surface crosses itself (module doc);
             :attr:`repair_folds` can be changed later.
     """
 
@@ -246,20 +252,16 @@ class SketchEngine:
 
     @mirror_average.setter
     def mirror_average(self, on: bool) -> None:
-        if not isinstance(on, (bool, np.bool_)):
-            raise ValueError(f"mirror_average must be a bool, got {on!r}")
-        self._mirror_average = bool(on)
+        self._mirror_average = _check_flag("mirror_average", on)
 
     @property
     def repair_folds(self) -> bool:
-        """Whether :meth:`predict` repairs self-intersections of the prediction (module doc)."""
+        """Whether :meth:`predict` repairs self-intersections of the final mesh (module doc)."""
         return self._repair_folds
 
     @repair_folds.setter
     def repair_folds(self, on: bool) -> None:
-        if not isinstance(on, (bool, np.bool_)):
-            raise ValueError(f"repair_folds must be a bool, got {on!r}")
-        self._repair_folds = bool(on)
+        self._repair_folds = _check_flag("repair_folds", on)
 
     def load(self) -> None:
         """Create and validate both sessions now (otherwise done on the first prediction).
@@ -296,9 +298,9 @@ class SketchEngine:
         with self._cache_lock:
             self._cache.clear()
 
-    def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool, repair: bool) -> _Entry:
+    def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool) -> _Entry:
         gen, pred = self._generator, self._predictor
-        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble", "repair"), 0.0)
+        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble"), 0.0)
         meshes, kept = [], None
         for flip in (False, True) if mirror else (False,):
             x = (raster[:, ::-1] if flip else raster)[None, None].astype(np.float32)
@@ -326,20 +328,9 @@ class SketchEngine:
             t0 = time.perf_counter()
             mesh = Mesh(mirror_average(meshes[0].vertices, meshes[1].vertices).astype(np.float32), mesh.faces)
             stages["assemble"] += (time.perf_counter() - t0) * 1e3
-        warnings: tuple[str, ...] = ()
-        if repair:
-            from engine.postprocess import repair_self_intersections
-
-            t0 = time.perf_counter()
-            fixed = repair_self_intersections(mesh)
-            stages["repair"] = (time.perf_counter() - t0) * 1e3
-            mesh = fixed.mesh
-            if fixed.after:
-                warnings = (f"the surface still crosses itself ({fixed.after} face pairs, {fixed.before} before "
-                            f"the fold repair)",)
         kept.setflags(write=False)
         timings.update(stages)
-        return _Entry(mesh, kept, warnings=warnings)
+        return _Entry(mesh, kept)
 
     def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:
         """Predict a mesh from a sketch.
@@ -377,15 +368,15 @@ class SketchEngine:
         if cached:
             timings.update({s: 0.0 for s in STAGES[1:]})
         else:
-            entry = self._run_models(raster, timings, mirror, repair)
+            entry = self._run_models(raster, timings, mirror)
             if self._cache_size:
                 with self._cache_lock:
                     self._cache[key] = entry
                     self._cache.move_to_end(key)
                     while len(self._cache) > self._cache_size:
                         self._cache.popitem(last=False)
-        mesh, warnings = entry.mesh, entry.warnings
-        timings["refine"] = 0.0
+        mesh, warnings = entry.mesh, ()
+        timings["refine"] = timings["repair"] = 0.0
         if steps:
             with self._cache_lock:
                 result = entry.refined.get(steps)
@@ -396,7 +387,22 @@ class SketchEngine:
                 with self._cache_lock:
                     entry.refined[steps] = result
             mesh = result.mesh
-            warnings += (result.warning,) if result.warning else ()
+            warnings = (result.warning,) if result.warning else ()
+        if repair:
+            from engine.postprocess import repair_self_intersections
+
+            with self._cache_lock:
+                fixed = entry.repaired.get(steps)
+            if fixed is None:
+                t1 = time.perf_counter()
+                fixed = repair_self_intersections(mesh)
+                timings["repair"] = (time.perf_counter() - t1) * 1e3
+                with self._cache_lock:
+                    entry.repaired[steps] = fixed
+            mesh = fixed.mesh
+            if fixed.after:
+                warnings += (f"the surface still crosses itself ({fixed.after} face pairs, {fixed.before} before "
+                             "the fold repair)",)
         return Prediction(
             mesh=mesh,
             normals=np.ascontiguousarray(entry.normals_nchw[0].transpose(1, 2, 0)) if want_normals else None,

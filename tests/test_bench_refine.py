@@ -78,7 +78,7 @@ def test_bench_refine_repair_folds(data, tmp_path):
         assert rec["repair_folds"] is bool(extra) and (rec["repair_ms_p50"] > 0) == bool(extra)
         assert rec["repair_ms_p50"] <= rec["repair_ms_p90"] <= rec["repair_ms_max"]
         counts[bool(extra)] = rec["self_intersections"]
-        assert ("fold repair on (clean sketches" if extra else "fold repair off") in (out / "refine.md").read_text()
+        assert ("fold repair on, after the refinement (clean N = 0" if extra else "fold repair off") in (out / "refine.md").read_text()
     assert counts[False] > 20 and counts[True] == 0
 
 

@@ -217,7 +217,8 @@ def register(commands, bench) -> None:
     p.add_argument("--mirror-average", action="store_true",
                    help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
     p.add_argument("--repair-folds", action="store_true",
-                   help="the engine's fold repair on (self-intersections smoothed away where they are), as in the app")
+                   help="the fold repair on each final mesh (self-intersections smoothed away where they are), as on "
+                   "the app's exports")
     p.add_argument("--true-camera", action="store_true",
                    help="also refine in each view's true framed camera and report its voxel IoU: a diagnostic of what "
                         "the engine's estimated camera costs (the engine cannot know the true one)")
@@ -269,6 +270,7 @@ def register(commands, bench) -> None:
     g.add_argument("--mirror-average", action="store_true",
                    help="the engine's mirror averaging on (each mesh averaged with the flipped drawing's), as in the app")
     g.add_argument("--repair-folds", action="store_true",
-                   help="the engine's fold repair on (self-intersections smoothed away where they are), as in the app")
+                   help="the fold repair on each final mesh (self-intersections smoothed away where they are), as on "
+                   "the app's exports")
     g.add_argument("--threads", type=positive_int, default=2)
     g.set_defaults(func=_cmd_gallery)
