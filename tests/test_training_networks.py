@@ -17,6 +17,7 @@ from training.model.networks import (  # noqa: E402
     PatchDiscriminator,
     adversarial_loss,
     build_predictor,
+    combinatorial_laplacian,
     downsample_normals,
     global_l1_loss,
     laplacian_basis,
@@ -559,3 +560,49 @@ def test_deepened_compact_predictor_starts_as_the_same_function_and_its_blocks_l
         build_predictor("softras", blocks=1)
     with pytest.raises(ValueError, match="predictor_blocks needs predictor_arch compact"):
         TrainConfig(predictor_arch="softras", predictor_blocks=1)
+
+
+def test_resmoothed_compact_predictor_computes_the_same_function_in_the_new_damping():
+    """A predictor trained with basis damping 16 loaded at damping 4: the same offsets; each basis column keeps its
+    direction and takes the gain sqrt(V) / (1 + 4 mu) of its Laplacian eigenvalue (eigvalsh, independently); a head
+    coefficient's gradient scales by the gain ratio, so the rough modes move further per step."""
+    torch.manual_seed(3)
+    old = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=16.0)
+    with torch.no_grad():
+        for m in old.modules():
+            if isinstance(m, torch.nn.Linear):
+                m.weight.normal_(0, 0.3)
+                m.bias.normal_(0, 0.1)
+            if isinstance(m, torch.nn.BatchNorm2d):
+                m.running_mean.normal_(0, 0.1)
+                m.running_var.uniform_(0.5, 2.0)
+    new = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=4.0)
+    new.load_resmoothed(old.state_dict(), 16.0)
+    x = torch.rand(3, 3, 64, 64)
+    for mode in ("eval", "train"):
+        old.train(mode == "train"), new.train(mode == "train")
+        for got, want in zip(new(x), old(x)):
+            torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
+    faces = old.template_faces.numpy()
+    v = old.num_vertices
+    mu = np.clip(np.linalg.eigvalsh(combinatorial_laplacian(faces, v)), 0.0, None)
+    b_old, b_new = old.basis.double().numpy(), new.basis.double().numpy()
+    np.testing.assert_allclose(np.linalg.norm(b_new, axis=0), np.sqrt(v) / (1.0 + 4.0 * mu), rtol=1e-4, atol=1e-6)
+    cos = (b_old * b_new).sum(0) / (np.linalg.norm(b_old, axis=0) * np.linalg.norm(b_new, axis=0))
+    np.testing.assert_allclose(cos, 1.0, atol=1e-6)
+    ratio = (1.0 + 16.0 * mu) / (1.0 + 4.0 * mu)
+    grads = []
+    for net in (old, new):
+        net.eval().zero_grad()
+        local, _ = net(x)
+        (local * torch.linspace(-1, 1, local.numel()).view_as(local)).sum().backward()
+        grads.append(net.local_head.bias.grad.double().view(-1, 3).numpy())
+    np.testing.assert_allclose(grads[1], grads[0] * ratio[:, None], rtol=1e-3, atol=1e-7)
+    assert ratio[-1] > 3.5 and abs(ratio[0] - 1.0) < 1e-9  # the roughest mode's steps grow about 4x, the constant one's not
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        new.load_resmoothed(old.state_dict(), -1.0)
+    with pytest.raises(ValueError, match="basis is"):
+        CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, modes=10).load_resmoothed(old.state_dict(), 16.0)
+    broken = dict(old.state_dict(), basis=torch.rand_like(old.basis))
+    with pytest.raises(ValueError, match="not Laplacian eigenvectors"):
+        new.load_resmoothed(broken, 16.0)

@@ -567,3 +567,26 @@ def test_slim_copy_keeps_the_models_and_drops_the_optimiser(tmp_path):
     (placed / "ckpt_00000007.pt").write_bytes((tmp_path / "slim.pt").read_bytes())
     assert load_latest_checkpoint(tmp_path / "placed")["iteration"] == 7
     assert (tmp_path / "slim.pt").stat().st_size < checkpoint_paths(tmp_path / "run")[0].stat().st_size
+
+
+def test_init_mesh_resmooths_a_predictor_trained_with_another_damping(data_dir, tmp_path, capsys):
+    """--init-mesh from a run with basis damping 16 into --predictor-smoothing 4: the same function at the start, the
+    basis rescaled per mode, and the event logged; the re-smoothed run then trains and resumes in its own damping."""
+    src = tmp_path / "src"
+    assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(src), "--iters", "1", "--ckpt-every", "1",
+                *TINY_FLAGS]) == 0, capsys.readouterr().err
+    same = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "same"), iters=1,
+                               init_mesh=str(src), **TINY), progress=False)
+    soft = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "soft"), iters=1,
+                               init_mesh=str(src), predictor_smoothing=4.0, **TINY), progress=False)
+    a, b = same.models["predictor"].eval(), soft.models["predictor"].eval()
+    x = torch.rand(2, 3, 64, 64)
+    for u, v in zip(a(x), b(x)):
+        torch.testing.assert_close(u, v, rtol=1e-5, atol=1e-6)
+    gain_a, gain_b = a.basis.norm(dim=0), b.basis.norm(dim=0)
+    assert torch.all(gain_b >= gain_a * (1 - 1e-6)) and gain_b[-1] > 3 * gain_a[-1]
+    assert "re-smoothed" in (tmp_path / "soft" / "events.log").read_text()
+    assert "re-smoothed" not in (tmp_path / "same" / "events.log").read_text()
+    soft.run()
+    assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "soft"), "--iters", "2",
+                *TINY_FLAGS, "--predictor-smoothing", "4"]) == 0, capsys.readouterr().err

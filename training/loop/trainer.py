@@ -44,6 +44,7 @@ from __future__ import annotations
 import copy
 import csv
 import io
+import json
 import math
 import os
 import time
@@ -464,11 +465,33 @@ class Trainer:
                     continue
                 if name not in state["models"]:
                     raise TrainingError(f"run {run} has no {name} weights to initialise from")
-                widened = self._load_init(name, state["models"][name], run)
+                weights = state["models"][name]
+                if name == "predictor":
+                    weights = self._resmooth_init(weights, state, run)
+                widened = self._load_init(name, weights, run)
                 if widened:
                     self._event(f"{name} widened from {run}: latent {widened[0]} -> {self.cfg.predictor_latent}, "
                                 f"hidden {widened[1]} -> {self.cfg.predictor_hidden} (same function at the start)")
             self._event(f"initialised {[n for n in names if n in self.models]} from {run}")
+
+    def _resmooth_init(self, weights: dict, state: dict, run: str) -> dict:
+        """``weights`` of run ``run``'s predictor; when that run damped its basis otherwise than this config, the
+        same function in this config's damping (:meth:`CompactMeshPredictor.load_resmoothed`)."""
+        try:
+            old = float(json.loads(state.get("config") or "{}").get("predictor_smoothing", self.cfg.predictor_smoothing))
+        except (ValueError, TypeError, AttributeError):
+            old = self.cfg.predictor_smoothing
+        model = _unwrap(self.models["predictor"])
+        if old == self.cfg.predictor_smoothing or not hasattr(model, "load_resmoothed"):
+            return weights
+        try:
+            model.load_resmoothed(weights, old)
+        except (ValueError, RuntimeError) as why:
+            raise TrainingError(f"predictor weights of run {run} cannot be re-smoothed from {old:g} to "
+                                f"{self.cfg.predictor_smoothing:g}: {why}") from None
+        self._event(f"predictor re-smoothed from {run}: basis damping {old:g} -> {self.cfg.predictor_smoothing:g} "
+                    "(same function at the start)")
+        return {k: v.detach().clone() for k, v in model.state_dict().items()}
 
     def _load_init(self, name: str, weights: dict, run: str) -> tuple[int, int] | None:
         """Load ``weights`` into model ``name``; a narrower or shallower compact predictor is grown (old widths

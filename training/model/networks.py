@@ -564,6 +564,48 @@ class CompactMeshPredictor(_TemplateOffsets):
         return int(old_latent), int(old_hidden)
 
     @torch.no_grad()
+    def load_resmoothed(self, state_dict: dict, old_smoothing: float) -> None:
+        """Load a compact predictor trained with basis damping ``old_smoothing`` so that this one, damped by
+        ``self.smoothing``, computes the same function.
+
+        Mode ``k`` of the stored basis is ``sqrt(V) phi_k / (1 + old mu_k)``; its eigenvalue ``mu_k`` is read
+        back from the column itself (Rayleigh quotient with the template's Laplacian, exact for an eigenvector
+        whatever rotation LAPACK chose inside a repeated eigenvalue's eigenspace), the column is rescaled to
+        ``sqrt(V) phi_k / (1 + new mu_k)`` and the head's three coefficient rows of mode ``k`` (weights and
+        bias) by the inverse ratio. The function is unchanged; what changes is how far a step of the head's
+        weights moves each mode: a smaller damping lets the rougher modes (thin parts, sharp edges) move
+        further per step.
+
+        Raises:
+            ValueError: ``old_smoothing`` is not finite and >= 0, the weights are not a compact predictor's
+                with this one's modes, or a stored column is not an eigenvector of the template's Laplacian.
+        """
+        if not (math.isfinite(old_smoothing) and old_smoothing >= 0):
+            raise ValueError(f"old smoothing must be finite and >= 0, got {old_smoothing}")
+        basis = state_dict.get("basis")
+        if basis is None or tuple(basis.shape) != tuple(self.basis.shape):
+            have = None if basis is None else tuple(basis.shape)
+            raise ValueError(f"cannot re-smooth: the weights' basis is {have}, this predictor's {tuple(self.basis.shape)}")
+        b = basis.double()
+        lap = torch.from_numpy(combinatorial_laplacian(self.template_faces.numpy(), self.num_vertices))
+        norms = b.norm(dim=0)
+        if not bool(torch.all(norms > 0)):
+            raise ValueError("cannot re-smooth: the weights' basis has a zero column")
+        phi = b / norms
+        mu = (phi * (lap @ phi)).sum(dim=0).clamp_min(0.0)
+        resid = (lap @ phi - phi * mu).norm(dim=0).max().item()
+        if resid > 1e-3 * (1.0 + mu.max().item()):
+            raise ValueError(f"cannot re-smooth: the weights' basis columns are not Laplacian eigenvectors "
+                             f"(residual {resid:.2e})")
+        ratio = (1.0 + old_smoothing * mu) / (1.0 + self.smoothing * mu)  # new gain / old gain, per mode
+        merged = dict(state_dict)
+        merged["basis"] = (b * ratio).to(basis.dtype)
+        rows = (1.0 / ratio).repeat_interleave(3)  # head rows are (mode, xyz) in that order (forward's view)
+        merged["local_head.weight"] = (state_dict["local_head.weight"].double() * rows[:, None]).to(basis.dtype)
+        merged["local_head.bias"] = (state_dict["local_head.bias"].double() * rows).to(basis.dtype)
+        self.load_state_dict(merged)
+
+    @torch.no_grad()
     def load_grown(self, state_dict: dict) -> tuple[int, int] | None:
         """Load a compact predictor with fewer encoder blocks and/or narrower FC layers as the same function.
 
