@@ -473,17 +473,22 @@ def test_compact_predictor_offsets_are_the_basis_times_the_head_and_stay_bounded
         TrainConfig(**cfg_bad)
 
 
+@torch.no_grad()
+def _trained_looking(net: torch.nn.Module) -> None:
+    """Non-zero heads and biases, BatchNorm statistics off their defaults: what a trained predictor looks like."""
+    for m in net.modules():
+        if isinstance(m, torch.nn.Linear):
+            m.weight.normal_(0, 0.3)
+            m.bias.normal_(0, 0.1)
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.normal_(0, 0.1)
+            m.running_var.uniform_(0.5, 2.0)
+
+
 def test_widened_compact_predictor_computes_the_same_function_and_every_new_weight_learns():
     torch.manual_seed(0)
     small = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16)
-    with torch.no_grad():  # a trained-looking predictor: non-zero heads, BatchNorm statistics off their defaults
-        for m in small.modules():
-            if isinstance(m, torch.nn.Linear):
-                m.weight.normal_(0, 0.3)
-                m.bias.normal_(0, 0.1)
-            if isinstance(m, torch.nn.BatchNorm2d):
-                m.running_mean.normal_(0, 0.1)
-                m.running_var.uniform_(0.5, 2.0)
+    _trained_looking(small)
     big = CompactMeshPredictor(2, base_channels=8, hidden=48, latent=24)
     assert big.load_widened(small.state_dict()) == (16, 32)
     x = torch.rand(3, 3, 64, 64)
@@ -568,14 +573,7 @@ def test_resmoothed_compact_predictor_computes_the_same_function_in_the_new_damp
     coefficient's gradient scales by the gain ratio, so the rough modes move further per step."""
     torch.manual_seed(3)
     old = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=16.0)
-    with torch.no_grad():
-        for m in old.modules():
-            if isinstance(m, torch.nn.Linear):
-                m.weight.normal_(0, 0.3)
-                m.bias.normal_(0, 0.1)
-            if isinstance(m, torch.nn.BatchNorm2d):
-                m.running_mean.normal_(0, 0.1)
-                m.running_var.uniform_(0.5, 2.0)
+    _trained_looking(old)
     new = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=4.0)
     new.load_resmoothed(old.state_dict(), 16.0)
     x = torch.rand(3, 3, 64, 64)
