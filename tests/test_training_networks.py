@@ -19,6 +19,7 @@ from training.model.networks import (  # noqa: E402
     build_predictor,
     combinatorial_laplacian,
     downsample_normals,
+    framed_ndc,
     global_l1_loss,
     laplacian_basis,
     local_l1_loss,
@@ -604,3 +605,89 @@ def test_resmoothed_compact_predictor_computes_the_same_function_in_the_new_damp
     broken = dict(old.state_dict(), basis=torch.rand_like(old.basis))
     with pytest.raises(ValueError, match="not Laplacian eigenvectors"):
         new.load_resmoothed(broken, 16.0)
+
+
+def test_framed_ndc_is_the_engines_framing_of_the_input_view():
+    """framed_ndc of view-frame points equals engine.camera.project through frame_camera (the dataset's framing of a
+    view), for cameras at several elevations and azimuths; it ignores the focal length and stays finite for points
+    at or behind the camera and for a mesh collapsed to one point."""
+    from engine.camera import DEFAULT_DISTANCE, Camera, project
+
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(200, 3)) * [0.4, 0.2, 0.3]
+    for elev, azim in ((0.0, 0.0), (30.0, 45.0), (45.0, 200.0)):
+        cam = look_at(azim, elev)
+        assert np.allclose(cam.t, [0.0, 0.0, -DEFAULT_DISTANCE])
+        want, _ = project(pts, frame_camera(Camera(cam.R, cam.t, 7.0), pts))
+        view = torch.from_numpy(pts @ cam.R.T)[None]  # p_view = R p_world
+        np.testing.assert_allclose(framed_ndc(view)[0].numpy(), want, atol=1e-9)
+    odd = torch.tensor([[[0.0, 0.0, DEFAULT_DISTANCE + 1.0], [0.1, 0.2, 0.0], [0.0, 0.0, DEFAULT_DISTANCE]]])
+    assert torch.isfinite(framed_ndc(odd)).all()
+    assert torch.isfinite(framed_ndc(torch.zeros(1, 5, 3))).all()
+    with pytest.raises(ValueError, match=r"\(N, V, 3\)"):
+        framed_ndc(torch.zeros(5, 3))
+
+
+def test_aligned_branch_reads_the_image_the_right_way_up(monkeypatch):
+    """Row 0 of an image is its top: the branch's features at a vertex above the centre (v > 0) come from the upper
+    rows, at a vertex to the right (u > 0) from the right columns (an image lit only there tells them apart)."""
+    import training.model.networks as networks
+
+    monkeypatch.setattr(networks, "ALIGNED_STAGES", 1)
+    net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=4)
+    img = torch.zeros(1, 1, 32, 32)
+    img[:, :, :16, 16:] = 1.0  # the upper right quadrant
+    net.aligned_mlp = torch.nn.Linear(4, 1, bias=False)  # the sampled value, weighted 1; the position, 0
+    with torch.no_grad():
+        net.aligned_mlp.weight.copy_(torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
+        net.aligned_gain.fill_(1.0 / net.local_scale)
+        pts = torch.tensor([[[0.3, 0.3, 0.0], [-0.3, 0.3, 0.0], [0.3, -0.3, 0.0], [-0.3, -0.3, 0.0]]])
+        got = net._aligned_offsets(pts, [img]).squeeze(-1)
+    torch.testing.assert_close(got, torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
+
+
+def test_aligned_branch_starts_as_the_same_function_learns_and_exports(tmp_path):
+    """A trained predictor loaded into one with the aligned branch computes the same offsets (its gate starts at
+    0); the gate gets a gradient at the first step and the branch's layers from the second; ONNX Runtime runs the
+    branch (GridSample) like torch; a branch cannot be dropped or resized by loading."""
+    import onnxruntime as ort
+
+    import engine.contract as C
+    from training.export.to_onnx import PARITY_TOLERANCE, export_models, parity_inputs
+
+    torch.manual_seed(5)
+    plain = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16)
+    _trained_looking(plain)
+    net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=16)
+    assert net.load_grown(plain.state_dict()) is None
+    x = torch.rand(3, 3, 64, 64)
+    plain.eval(), net.eval()
+    for got, want in zip(net(x), plain(x)):
+        torch.testing.assert_close(got, want, rtol=1e-6, atol=1e-7)
+    opt = torch.optim.Adam(net.parameters(), lr=1e-2)
+    for step in range(2):
+        opt.zero_grad()
+        local, glob = net(x)
+        (local * torch.linspace(-1, 1, local.numel()).view_as(local)).sum().backward()
+        assert net.aligned_gain.grad.abs() > 0
+        assert (net.aligned_mlp[0].weight.grad.abs().sum() > 0) == (step == 1)
+        opt.step()
+    net.eval()
+    sketches, normals64, _ = parity_inputs(TrainConfig(data_dir=str(tmp_path / "no_data")))
+    (report,) = export_models(None, net, tmp_path, config_json=TrainConfig(predictor_aligned=16).to_json(),
+                              code_version="t", sketches=sketches, normals64=normals64)
+    assert report.max_abs_error <= PARITY_TOLERANCE
+    sess = ort.InferenceSession(str(tmp_path / C.PREDICTOR_FILE), providers=["CPUExecutionProvider"])
+    assert "GridSample" in {n.op_type for n in __import__("onnx").load(str(tmp_path / C.PREDICTOR_FILE)).graph.node}
+    outs = sess.run(None, {C.PREDICTOR_INPUT: x.numpy()})
+    with torch.no_grad():
+        ref = net(x)
+    assert max(float(np.abs(o - r.numpy()).max()) for o, r in zip(outs, ref)) < PARITY_TOLERANCE
+    with pytest.raises(ValueError, match="aligned branch this predictor lacks"):
+        CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16).load_grown(net.state_dict())
+    with pytest.raises(ValueError, match="aligned must be >= 0"):
+        CompactMeshPredictor(2, aligned=-1)
+    with pytest.raises(ValueError, match="compact-predictor options"):
+        build_predictor("softras", aligned=8)
+    with pytest.raises(ValueError, match="predictor_aligned needs predictor_arch compact"):
+        TrainConfig(predictor_arch="softras", predictor_aligned=8)

@@ -590,3 +590,28 @@ def test_init_mesh_resmooths_a_predictor_trained_with_another_damping(data_dir, 
     soft.run()
     assert cli(["train", "mesh", "--data", str(data_dir), "--out", str(tmp_path / "soft"), "--iters", "2",
                 *TINY_FLAGS, "--predictor-smoothing", "4"]) == 0, capsys.readouterr().err
+
+
+def test_aligned_branch_samples_the_image_where_each_vertex_lands(data_dir):
+    """The grid the aligned branch samples with puts a dataset mesh's vertices on its own silhouette in the input
+    view: the silhouette sampled (bilinear) at the projected vertices is on or inside it; a quarter of the image to the
+    side many are not."""
+    from training.data.dataset import ShapeViewDataset
+    from training.model.networks import framed_ndc
+
+    ds = ShapeViewDataset(data_dir, "train", extra_views=0, augment_strength=0.0)
+    for i in (0, len(ds) - 1):
+        item = ds[i]
+        mesh = ds.load_mesh(item["category"], item["shape_id"])
+        r_in = np.asarray(item["camera"])[:9].reshape(3, 3)
+        view = torch.from_numpy(np.asarray(mesh.vertices, np.float64) @ r_in.T)[None]
+        uv = framed_ndc(view)
+        grid = torch.stack([uv[..., 0], -uv[..., 1]], dim=-1).unsqueeze(2)
+        sil = torch.as_tensor(np.asarray(item["silhouette64"]), dtype=torch.float64).reshape(1, 1, 64, 64)
+        on = torch.nn.functional.grid_sample(sil, grid, align_corners=False).flatten()
+        shifted = torch.nn.functional.grid_sample(sil, grid + torch.tensor([0.5, 0.0], dtype=grid.dtype),
+                                                  align_corners=False).flatten()
+        # a vertex on the outline samples about 0.5 (bilinear across the edge); all but a corner or two are on or inside
+        assert (on > 0.2).double().mean() > 0.97 and on.mean() > 0.8, (float((on > 0.2).double().mean()), float(on.mean()))
+        assert (shifted > 0.2).double().mean() < 0.9, float((shifted > 0.2).double().mean())
+

@@ -81,11 +81,12 @@ def _is_main_rank() -> bool:
 INIT_FIELDS = {
     "generator": ("base_channels", "generator_arch"),
     "predictor": ("predictor_arch", "template_level", "predictor_channels", "predictor_hidden", "predictor_latent",
-                  "predictor_modes", "predictor_blocks"),
+                  "predictor_modes", "predictor_blocks", "predictor_aligned"),
 }
 """Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
-WIDENABLE = ("predictor_hidden", "predictor_latent", "predictor_blocks")
-"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_grown``)."""
+WIDENABLE = ("predictor_hidden", "predictor_latent", "predictor_blocks", "predictor_aligned")
+"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_grown``; the aligned branch only from
+none)."""
 
 
 def _check_init_run(run: str, flag: str, role: str, cfg) -> None:
@@ -101,6 +102,8 @@ def _check_init_run(run: str, flag: str, role: str, cfg) -> None:
     if role not in state["models"]:
         raise ConfigError(f"{flag} {run}: a {saved.mode} run, it has no {role} to initialise from")
     def fits(k: str) -> bool:  # a compact predictor is widened to larger fully connected layers (load_widened)
+        if k == "predictor_aligned" and cfg.predictor_arch == "compact":  # added where absent, never resized
+            return getattr(saved, k) in (0, getattr(cfg, k))
         if k in WIDENABLE and cfg.predictor_arch == "compact":
             return getattr(saved, k) <= getattr(cfg, k)
         return getattr(saved, k) == getattr(cfg, k)

@@ -222,9 +222,10 @@ def load_predictor(graph: _Graph, cfg: TrainConfig, calibration: torch.Tensor | 
     """The compact predictor of ``cfg`` with the graph's weights; batch norms from ``calibration`` (module doc)."""
     from training.loop.trainer import build_models
 
-    if cfg.predictor_arch != "compact" or cfg.predictor_blocks:
-        raise ModelError(f"{graph.path}: only the compact predictor without residual blocks can be imported "
-                         f"(this one: {cfg.predictor_arch}, {cfg.predictor_blocks} blocks)")
+    if cfg.predictor_arch != "compact" or cfg.predictor_blocks or cfg.predictor_aligned:
+        raise ModelError(f"{graph.path}: only the compact predictor without residual blocks or aligned branch can be "
+                         f"imported (this one: {cfg.predictor_arch}, {cfg.predictor_blocks} blocks, aligned "
+                         f"{cfg.predictor_aligned})")
     p = build_models(cfg.replace(mode="mesh"))["predictor"]
     pairs = [(m, p.encoder[i + 1]) for i, m in enumerate(p.encoder) if isinstance(m, nn.Conv2d)]
     convs = graph.convolutions()

@@ -77,6 +77,10 @@ class TrainConfig:
         predictor_modes: size M of the compact predictor's offset basis (0: one mode per vertex).
         predictor_blocks: residual blocks after each strided convolution of the compact predictor's
             encoder (0: none). ``--init-mesh`` from a run with fewer deepens it as the same function.
+        predictor_aligned: width of the compact predictor's aligned branch, which samples the encoder's
+            feature maps where each vertex lands in the input view (0: none; see
+            :class:`training.model.networks.CompactMeshPredictor`). ``--init-mesh`` from a run without it
+            adds it as the same function.
         template_level: icosphere level (3 -> 642 vertices, the paper's).
         predictor_local_bound: "tanh" or "clamp" bound of the softras predictor's local offsets (see
             :class:`training.model.networks.MeshPredictor`; the compact predictor's head is linear).
@@ -173,6 +177,7 @@ class TrainConfig:
     predictor_latent: int = 256
     predictor_modes: int = 0
     predictor_blocks: int = 0
+    predictor_aligned: int = 0
     template_level: int = 3
     predictor_smoothing: float = 16.0
     predictor_local_bound: str = "tanh"
@@ -263,6 +268,10 @@ class TrainConfig:
             problems.append(f"predictor_blocks must be in [0, 4], got {self.predictor_blocks}")
         elif self.predictor_blocks and self.predictor_arch != "compact":
             problems.append("predictor_blocks needs predictor_arch compact")
+        if int(self.predictor_aligned) < 0:
+            problems.append(f"predictor_aligned must be >= 0, got {self.predictor_aligned}")
+        elif self.predictor_aligned and self.predictor_arch != "compact":
+            problems.append("predictor_aligned needs predictor_arch compact")
         if not 0 <= self.template_level <= 5:
             problems.append(f"template_level must be in [0, 5], got {self.template_level}")
         for name in ("lr_g", "lr_d", "lr_mesh", "delta", "soft_sigma"):

@@ -81,7 +81,8 @@ SURFACE_POINTS = 1024
 """Points per mesh in the Chamfer term of ``supervision="3d"`` (the diagnostic ceiling)."""
 
 MODEL_SHAPE_FIELDS = ("mode", "base_channels", "generator_arch", "predictor_arch", "predictor_channels",
-                      "predictor_hidden", "predictor_latent", "predictor_modes", "predictor_blocks", "template_level",
+                      "predictor_hidden", "predictor_latent", "predictor_modes", "predictor_blocks", "predictor_aligned",
+                      "template_level",
                       "predictor_smoothing", "predictor_local_bound", "sketch_size")
 """Config fields a resumed run must share with its checkpoint (they fix the parameter shapes or
 the function the parameters were trained in)."""
@@ -161,7 +162,7 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
             cfg.predictor_arch, template_level=cfg.template_level, channels=cfg.predictor_channels,
             hidden=cfg.predictor_hidden, latent=cfg.predictor_latent, input_size=cfg.render_size,
             smoothing=cfg.predictor_smoothing, local_bound=cfg.predictor_local_bound, modes=cfg.predictor_modes,
-            blocks=cfg.predictor_blocks,
+            blocks=cfg.predictor_blocks, aligned=cfg.predictor_aligned,
         )
     return models
 

@@ -41,6 +41,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from engine.camera import DEFAULT_DISTANCE, FRAME_MARGIN
 from engine.contract import PREDICTOR_INPUT_SIZE, SKETCH_SIZE
 from engine.icosphere import TEMPLATE_RADIUS, icosphere
 from engine.mesh import unique_edges
@@ -396,6 +397,28 @@ def laplacian_basis(faces: np.ndarray, num_vertices: int, modes: int, lam: float
 MAX_ENCODER_BLOCKS = 4
 """Most residual blocks per encoder stage of :class:`CompactMeshPredictor`."""
 
+ALIGNED_STAGES = 3
+"""Encoder stages whose feature maps (32, 16 and 8 px) the aligned branch samples at each vertex."""
+
+
+def framed_ndc(view_vertices: torch.Tensor, distance: float = DEFAULT_DISTANCE,
+               margin: float = FRAME_MARGIN) -> torch.Tensor:
+    """(N, V, 2) NDC (+u right, +v up) of view-frame vertices in the input view, framed by their own outline.
+
+    The input view looks down -z from ``distance`` (the dataset's and the engine's view frame), and its image is
+    framed like an engine sketch (:func:`engine.camera.frame_camera`): the projected bounding box centred, its
+    longer side spanning ``1 - 2 margin`` of the image. Framing the mesh by its own outline makes its projection
+    independent of the focal length and of where the drawing sat on the page, so a network can compute it
+    without a camera. Points at or behind the camera are held at a small positive depth (finite values).
+    """
+    if view_vertices.ndim != 3 or view_vertices.shape[-1] != 3:
+        raise ValueError(f"view_vertices must be (N, V, 3), got {tuple(view_vertices.shape)}")
+    depth = (distance - view_vertices[..., 2:3]).clamp_min(1e-3)
+    uv = view_vertices[..., :2] / depth
+    lo, hi = uv.amin(dim=1, keepdim=True), uv.amax(dim=1, keepdim=True)
+    extent = (hi - lo).amax(dim=-1, keepdim=True).clamp_min(1e-6)
+    return (uv - (lo + hi) / 2.0) * (2.0 * (1.0 - 2.0 * margin) / extent)
+
 
 class _ResidualBlock(nn.Module):
     """``x + alpha conv(ReLU(BN(conv(x))))`` with 3x3 convolutions and a scalar ``alpha`` that starts at 0 (ReZero,
@@ -451,6 +474,13 @@ class CompactMeshPredictor(_TemplateOffsets):
             convolutions, at 32, 16, 8 and 4 pixels: a deeper encoder. A block starts as the identity
             (its output is gated by a scalar that starts at 0), so :meth:`load_grown` can deepen a
             trained predictor.
+        aligned: width of the aligned branch's per-vertex layer (0: no branch). The branch reads the image
+            where each vertex lands (Pixel2Mesh's perceptual pooling): the mesh the heads predict is projected
+            into the input view, framed by its own outline (:func:`framed_ndc`), the encoder's first three
+            feature maps are sampled there (bilinear), and a two-layer perceptron shared by all vertices turns
+            those features and the vertex's position into a residual offset, gated by a scalar that starts at
+            0 (so :meth:`load_grown` adds it to a trained predictor as the same function). The global decoder
+            reads where the drawing's parts are only through its code; the branch sees them at each vertex.
     """
 
     def __init__(
@@ -465,8 +495,11 @@ class CompactMeshPredictor(_TemplateOffsets):
         local_scale: float = LOCAL_OFFSET_SCALE,
         global_scale: float = GLOBAL_OFFSET_SCALE,
         blocks: int = 0,
+        aligned: int = 0,
     ) -> None:
         super().__init__()
+        if int(aligned) < 0:
+            raise ValueError(f"aligned must be >= 0, got {aligned}")
         if not 0 <= int(blocks) <= MAX_ENCODER_BLOCKS:
             raise ValueError(f"blocks must be in [0, {MAX_ENCODER_BLOCKS}], got {blocks}")
         if input_size % 16:
@@ -501,6 +534,11 @@ class CompactMeshPredictor(_TemplateOffsets):
         for head in (self.local_head, self.global_head):
             nn.init.normal_(head.weight, std=OUTPUT_INIT_STD)
             nn.init.zeros_(head.bias)
+        self.aligned = int(aligned)
+        if self.aligned:
+            features = sum(c * 2 ** k for k in range(ALIGNED_STAGES)) + 3
+            self.aligned_mlp = nn.Sequential(nn.Linear(features, self.aligned), nn.ReLU(), nn.Linear(self.aligned, 3))
+            self.aligned_gain = nn.Parameter(torch.zeros(()))
 
     def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                               error_msgs) -> None:
@@ -620,47 +658,72 @@ class CompactMeshPredictor(_TemplateOffsets):
         extra = sorted(k for k in state_dict if k.startswith("blocks.") and k not in own)
         if extra:
             raise ValueError(f"cannot load: the weights have encoder blocks this predictor lacks ({extra[0]})")
+        extra = sorted(k for k in state_dict if k.startswith("aligned_") and k not in own)
+        if extra:
+            raise ValueError(f"cannot load: the weights have an aligned branch this predictor lacks ({extra[0]})")
         merged = dict(state_dict)
-        merged.update({k: v for k, v in own.items() if k.startswith("blocks.") and k not in state_dict})
+        merged.update({k: v for k, v in own.items()
+                       if k.startswith(("blocks.", "aligned_")) and k not in state_dict})
         try:
             self.load_state_dict(merged)
             return None
         except RuntimeError:
             return self.load_widened(merged)
 
+    def _encode_maps(self, normals: torch.Tensor) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """The code (N, latent) and the four stages' feature maps (each after its residual blocks)."""
+        x, maps = normals, []
+        for stage in range(4):
+            x = self.encoder[3 * stage:3 * stage + 3](x)
+            if self.blocks is not None:
+                x = self.blocks[stage](x)
+            maps.append(x)
+        return self.encoder[12:](x), maps
+
     def encode(self, normals: torch.Tensor) -> torch.Tensor:
         """The code (N, latent): the four strided stages (each followed by its residual blocks), then the FC layer."""
         if self.blocks is None:
             return self.encoder(normals)
-        x = normals
-        for stage, blocks in enumerate(self.blocks):
-            x = blocks(self.encoder[3 * stage:3 * stage + 3](x))
-        return self.encoder[12:](x)
+        return self._encode_maps(normals)[0]
+
+    def _aligned_offsets(self, vertices: torch.Tensor, maps: list[torch.Tensor]) -> torch.Tensor:
+        """(N, V, 3) the aligned branch's residual offsets for view-frame ``vertices`` (class doc)."""
+        uv = framed_ndc(vertices.detach())
+        grid = torch.stack([uv[..., 0], -uv[..., 1]], dim=-1).unsqueeze(2)  # image rows run down: v up is -y
+        sampled = [F.grid_sample(m, grid.to(m.dtype), mode="bilinear", padding_mode="border", align_corners=False)
+                   .squeeze(-1) for m in maps[:ALIGNED_STAGES]]  # (N, C, V) each
+        features = torch.cat([*sampled, vertices.detach().transpose(1, 2)], dim=1).transpose(1, 2)
+        return self.aligned_gain * self.local_scale * self.aligned_mlp(features)
 
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
         _check_image(normals, 3, self.input_size, "normals")
-        h = self.decoder(self.encode(normals)) * self.head_gain
+        if self.aligned:
+            code, maps = self._encode_maps(normals)
+        else:
+            code, maps = self.encode(normals), []
+        h = self.decoder(code) * self.head_gain
         coeff = self.local_head(h).view(-1, self.modes, 3)
         local = self.local_scale * torch.matmul(self.basis.to(coeff.dtype), coeff)
-        bound = LOCAL_CLAMP * self.local_scale
-        local = local.clamp(-bound, bound)
         glob = self.global_scale * torch.tanh(self.global_head(h))
-        return local, glob
+        if self.aligned:
+            local = local + self._aligned_offsets(self.vertices(local, glob), maps)
+        bound = LOCAL_CLAMP * self.local_scale
+        return local.clamp(-bound, bound), glob
 
 
 def build_predictor(arch: str = "softras", *, template_level: int = 3, channels: int = 64, hidden: int = 1024,
                     latent: int = 512, input_size: int = PREDICTOR_INPUT_SIZE, smoothing: float = PREDICTOR_SMOOTHING,
-                    local_bound: str = "tanh", modes: int = 0, blocks: int = 0) -> nn.Module:
+                    local_bound: str = "tanh", modes: int = 0, blocks: int = 0, aligned: int = 0) -> nn.Module:
     """The mesh predictor of architecture ``arch`` (:data:`PREDICTOR_ARCHS`)."""
     if arch == "softras":
-        if blocks:
-            raise ValueError("encoder blocks are a compact-predictor option (predictor_arch compact)")
+        if blocks or aligned:
+            raise ValueError("encoder blocks and the aligned branch are compact-predictor options (predictor_arch compact)")
         return MeshPredictor(template_level, channels, hidden, latent, input_size, smoothing=smoothing,
                              local_bound=local_bound)
     if arch == "compact":
         return CompactMeshPredictor(template_level, channels, hidden, latent, modes=modes, smoothing=smoothing,
-                                    input_size=input_size, blocks=blocks)
+                                    input_size=input_size, blocks=blocks, aligned=aligned)
     raise ValueError(f"predictor arch must be one of {PREDICTOR_ARCHS}, got {arch!r}")
 
 
@@ -800,6 +863,7 @@ __all__ = [
     "SKETCH_SIZE",
     "adversarial_loss",
     "build_predictor",
+    "framed_ndc",
     "downsample_normals",
     "generator_channels",
     "global_l1_loss",
