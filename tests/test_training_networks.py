@@ -639,17 +639,16 @@ def test_aligned_branch_reads_the_image_the_right_way_up(monkeypatch):
     img[:, :, :16, 16:] = 1.0  # the upper right quadrant
     net.aligned_mlp = torch.nn.Linear(4, 1, bias=False)  # the sampled value, weighted 1; the position, 0
     with torch.no_grad():
-        net.aligned_mlp.weight.copy_(torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
-        net.aligned_gain.fill_(1.0 / net.local_scale)
+        net.aligned_mlp.weight.copy_(torch.tensor([[1.0 / net.local_scale, 0.0, 0.0, 0.0]]))
         pts = torch.tensor([[[0.3, 0.3, 0.0], [-0.3, 0.3, 0.0], [0.3, -0.3, 0.0], [-0.3, -0.3, 0.0]]])
         got = net._aligned_offsets(pts, [img]).squeeze(-1)
     torch.testing.assert_close(got, torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
 
 
 def test_aligned_branch_starts_as_the_same_function_learns_and_exports(tmp_path):
-    """A trained predictor loaded into one with the aligned branch computes the same offsets (its gate starts at
-    0); the gate gets a gradient at the first step and the branch's layers from the second; ONNX Runtime runs the
-    branch (GridSample) like torch; a branch cannot be dropped or resized by loading."""
+    """A trained predictor loaded into one with the aligned branch computes the same offsets (the branch's last
+    layer starts at zero); that layer gets a gradient at the first step, the first layer from the second; ONNX
+    Runtime runs the branch (GridSample) like torch; a branch cannot be dropped by loading."""
     import onnxruntime as ort
 
     import engine.contract as C
@@ -669,7 +668,7 @@ def test_aligned_branch_starts_as_the_same_function_learns_and_exports(tmp_path)
         opt.zero_grad()
         local, glob = net(x)
         (local * torch.linspace(-1, 1, local.numel()).view_as(local)).sum().backward()
-        assert net.aligned_gain.grad.abs() > 0
+        assert net.aligned_mlp[2].weight.grad.abs().sum() > 0
         assert (net.aligned_mlp[0].weight.grad.abs().sum() > 0) == (step == 1)
         opt.step()
     net.eval()

@@ -70,7 +70,9 @@
 #   recipe for V16_ITERS [3000] iterations (predictor-v16 runs both); compared on the validation split
 #   (val-*-v16, folds-v16-*) and pictured (gallery-v16). Then the other way, damping 64, and the control's recipe at a
 #   quarter of the rate (predictor-v16b: predictor-v16-damp64, predictor-v16-lowlr; val-*-v16b against v16_control).
-#   All level on validation: predictor-v17 trains v16_control on along one long cosine, a sitting at a time.
+#   All level on validation. The aligned branch (the image sampled where each vertex lands) added to v16_control and
+#   trained on against an equal-cost control (predictor-v16c: predictor-v16-aligned, predictor-v16-control2; val-*-v16c).
+#   predictor-v17 trains v16_control on along one long cosine, a sitting at a time.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1232,6 +1234,20 @@ EOF
         train7 "$RUNS14/v15_control" "$RUNS16/v16_lowlr" "${V16_ITERS:-3000}" "${V16_MINUTES:-70}" 1 ;;
     predictor-v16b)  # both side by side on the two cores (after predictor-v16: v16_control is their control too)
       step predictor-v16-damp64 & step predictor-v16-lowlr & wait ;;
+    predictor-v16-aligned)  # v16_control with the aligned branch (width V16_ALIGNED [128]) added as the same function,
+      # trained on by the control's recipe, one thread: a step costs 1.8x the control's (0.76 against 1.37 it/s side by
+      # side), so V16A_ITERS [1100] iterations take the control's time for its 2,000 (equal wall-clock, each its own cosine)
+      PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
+        train7 "$RUNS16/v16_control" "$RUNS16/v16_aligned" "${V16A_ITERS:-1100}" "${V16_MINUTES:-70}" 1 ;;
+    predictor-v16-control2)  # its control at equal time: v16_control trained on unchanged by the same recipe (V16C_ITERS
+      # [2000] iterations)
+      PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
+        train7 "$RUNS16/v16_control" "$RUNS16/v16_control2" "${V16C_ITERS:-2000}" "${V16_MINUTES:-70}" 1 ;;
+    predictor-v16c)  # both side by side on the two cores
+      step predictor-v16-aligned & step predictor-v16-control2 & wait ;;
+    val-v16c|val-strong-v16c|val-side-v16c)  # the aligned branch against its control, plain and +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT16/valc_${EVAL_NAME#eval_}" "$RUNS16/v16_aligned" "$RUNS16/v16_control2" ;;
     predictor-v17)  # the plateau's long run: v16_control trained on by the same recipe along one cosine of V17_ITERS
       # [12000] iterations on two threads, V17_MINUTES [600] at most per sitting; resumes where a sitting stopped
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \

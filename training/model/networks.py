@@ -478,9 +478,11 @@ class CompactMeshPredictor(_TemplateOffsets):
             where each vertex lands (Pixel2Mesh's perceptual pooling): the mesh the heads predict is projected
             into the input view, framed by its own outline (:func:`framed_ndc`), the encoder's first three
             feature maps are sampled there (bilinear), and a two-layer perceptron shared by all vertices turns
-            those features and the vertex's position into a residual offset, gated by a scalar that starts at
-            0 (so :meth:`load_grown` adds it to a trained predictor as the same function). The global decoder
-            reads where the drawing's parts are only through its code; the branch sees them at each vertex.
+            those features and the vertex's position into a residual offset. Its last layer starts at zero, so
+            :meth:`load_grown` adds the branch to a trained predictor as the same function, and that layer
+            learns from the first step (a scalar gate starting at 0 would let Adam open the branch by only
+            about the learning rate per step). The global decoder reads where the drawing's parts are only
+            through its code; the branch sees them at each vertex.
     """
 
     def __init__(
@@ -538,7 +540,8 @@ class CompactMeshPredictor(_TemplateOffsets):
         if self.aligned:
             features = sum(c * 2 ** k for k in range(ALIGNED_STAGES)) + 3
             self.aligned_mlp = nn.Sequential(nn.Linear(features, self.aligned), nn.ReLU(), nn.Linear(self.aligned, 3))
-            self.aligned_gain = nn.Parameter(torch.zeros(()))
+            nn.init.zeros_(self.aligned_mlp[2].weight)
+            nn.init.zeros_(self.aligned_mlp[2].bias)
 
     def _load_from_state_dict(self, state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys,
                               error_msgs) -> None:
@@ -693,7 +696,7 @@ class CompactMeshPredictor(_TemplateOffsets):
         sampled = [F.grid_sample(m, grid.to(m.dtype), mode="bilinear", padding_mode="border", align_corners=False)
                    .squeeze(-1) for m in maps[:ALIGNED_STAGES]]  # (N, C, V) each
         features = torch.cat([*sampled, vertices.detach().transpose(1, 2)], dim=1).transpose(1, 2)
-        return self.aligned_gain * self.local_scale * self.aligned_mlp(features)
+        return self.local_scale * self.aligned_mlp(features)
 
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
