@@ -72,7 +72,7 @@
 #   quarter of the rate (predictor-v16b: predictor-v16-damp64, predictor-v16-lowlr; val-*-v16b against v16_control).
 #   All level on validation. The aligned branch (the image sampled where each vertex lands) added to v16_control and
 #   trained on against an equal-cost control (predictor-v16c: predictor-v16-aligned, predictor-v16-control2; val-*-v16c).
-#   predictor-v17 trains v16_control on along one long cosine, a sitting at a time.
+#   predictor-v17 trains v16_aligned on along one long cosine, a sitting at a time.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1248,10 +1248,11 @@ EOF
     val-v16c|val-strong-v16c|val-side-v16c)  # the aligned branch against its control, plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT16/valc_${EVAL_NAME#eval_}" "$RUNS16/v16_aligned" "$RUNS16/v16_control2" ;;
-    predictor-v17)  # the plateau's long run: v16_control trained on by the same recipe along one cosine of V17_ITERS
-      # [12000] iterations on two threads, V17_MINUTES [600] at most per sitting; resumes where a sitting stopped
-      PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
-        train7 "$RUNS16/v16_control" "$RUNS16/v17_long" "${V17_ITERS:-12000}" "${V17_MINUTES:-600}" 2 ;;
+    predictor-v17)  # the long run: v16_aligned (the aligned branch, the one trial that was not level) trained on by the
+      # same recipe along one cosine of V17_ITERS [8000] iterations on two threads, V17_MINUTES [600] at most per
+      # sitting; resumes where a sitting stopped
+      PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
+        train7 "$RUNS16/v16_aligned" "$RUNS16/v17_aligned" "${V17_ITERS:-8000}" "${V17_MINUTES:-600}" 2 ;;
     val-v16b|val-strong-v16b|val-side-v16b)  # the two against v16_control, plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT16/valb_${EVAL_NAME#eval_}" "$RUNS16/v16_damp64" "$RUNS16/v16_lowlr" "$RUNS16/v16_control" ;;
