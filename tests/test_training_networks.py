@@ -576,7 +576,7 @@ def test_resmoothed_compact_predictor_computes_the_same_function_in_the_new_damp
     old = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=16.0)
     _trained_looking(old)
     new = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, smoothing=4.0)
-    new.load_resmoothed(old.state_dict(), 16.0)
+    new.load_state_dict(new.resmoothed_state(old.state_dict(), 16.0))
     x = torch.rand(3, 3, 64, 64)
     for mode in ("eval", "train"):
         old.train(mode == "train"), new.train(mode == "train")
@@ -599,12 +599,12 @@ def test_resmoothed_compact_predictor_computes_the_same_function_in_the_new_damp
     np.testing.assert_allclose(grads[1], grads[0] * ratio[:, None], rtol=1e-3, atol=1e-7)
     assert ratio[-1] > 3.5 and abs(ratio[0] - 1.0) < 1e-9  # the roughest mode's steps grow about 4x, the constant one's not
     with pytest.raises(ValueError, match="finite and >= 0"):
-        new.load_resmoothed(old.state_dict(), -1.0)
+        new.resmoothed_state(old.state_dict(), -1.0)
     with pytest.raises(ValueError, match="basis is"):
-        CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, modes=10).load_resmoothed(old.state_dict(), 16.0)
+        CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, modes=10).resmoothed_state(old.state_dict(), 16.0)
     broken = dict(old.state_dict(), basis=torch.rand_like(old.basis))
     with pytest.raises(ValueError, match="not Laplacian eigenvectors"):
-        new.load_resmoothed(broken, 16.0)
+        new.resmoothed_state(broken, 16.0)
 
 
 def test_framed_ndc_is_the_engines_framing_of_the_input_view():

@@ -84,9 +84,9 @@ INIT_FIELDS = {
                   "predictor_modes", "predictor_blocks", "predictor_aligned"),
 }
 """Config fields that fix the parameter shapes of the networks an --init-* run hands over."""
-WIDENABLE = ("predictor_hidden", "predictor_latent", "predictor_blocks", "predictor_aligned")
-"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_grown``; the aligned branch only from
-none)."""
+WIDENABLE = ("predictor_hidden", "predictor_latent", "predictor_blocks")
+"""Of those, the ones a compact predictor may grow (``CompactMeshPredictor.load_grown``; its aligned branch it may add
+where the run has none, see ``fits``)."""
 
 
 def _check_init_run(run: str, flag: str, role: str, cfg) -> None:

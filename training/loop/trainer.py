@@ -44,7 +44,6 @@ from __future__ import annotations
 import copy
 import csv
 import io
-import json
 import math
 import os
 import time
@@ -477,22 +476,22 @@ class Trainer:
 
     def _resmooth_init(self, weights: dict, state: dict, run: str) -> dict:
         """``weights`` of run ``run``'s predictor; when that run damped its basis otherwise than this config, the
-        same function in this config's damping (:meth:`CompactMeshPredictor.load_resmoothed`)."""
+        same function in this config's damping (:meth:`CompactMeshPredictor.resmoothed_state`)."""
         try:
-            old = float(json.loads(state.get("config") or "{}").get("predictor_smoothing", self.cfg.predictor_smoothing))
-        except (ValueError, TypeError, AttributeError):
+            old = TrainConfig.from_json(state["config"]).predictor_smoothing
+        except (KeyError, ValueError, TypeError):
             old = self.cfg.predictor_smoothing
         model = _unwrap(self.models["predictor"])
-        if old == self.cfg.predictor_smoothing or not hasattr(model, "load_resmoothed"):
+        if old == self.cfg.predictor_smoothing or not hasattr(model, "resmoothed_state"):
             return weights
         try:
-            model.load_resmoothed(weights, old)
-        except (ValueError, RuntimeError) as why:
+            weights = model.resmoothed_state(weights, old)
+        except ValueError as why:
             raise TrainingError(f"predictor weights of run {run} cannot be re-smoothed from {old:g} to "
                                 f"{self.cfg.predictor_smoothing:g}: {why}") from None
         self._event(f"predictor re-smoothed from {run}: basis damping {old:g} -> {self.cfg.predictor_smoothing:g} "
                     "(same function at the start)")
-        return {k: v.detach().clone() for k, v in model.state_dict().items()}
+        return weights
 
     def _load_init(self, name: str, weights: dict, run: str) -> tuple[int, int] | None:
         """Load ``weights`` into model ``name``; a narrower or shallower compact predictor is grown (old widths

@@ -605,9 +605,10 @@ class CompactMeshPredictor(_TemplateOffsets):
         return int(old_latent), int(old_hidden)
 
     @torch.no_grad()
-    def load_resmoothed(self, state_dict: dict, old_smoothing: float) -> None:
-        """Load a compact predictor trained with basis damping ``old_smoothing`` so that this one, damped by
-        ``self.smoothing``, computes the same function.
+    def resmoothed_state(self, state_dict: dict, old_smoothing: float) -> dict:
+        """The weights of a compact predictor trained with basis damping ``old_smoothing``, converted so that this
+        one, damped by ``self.smoothing``, computes the same function with them (load them as usual, e.g. with
+        :meth:`load_grown`, which may also widen them).
 
         Mode ``k`` of the stored basis is ``sqrt(V) phi_k / (1 + old mu_k)``; its eigenvalue ``mu_k`` is read
         back from the column itself (Rayleigh quotient with the template's Laplacian, exact for an eigenvector
@@ -644,7 +645,7 @@ class CompactMeshPredictor(_TemplateOffsets):
         rows = (1.0 / ratio).repeat_interleave(3)  # head rows are (mode, xyz) in that order (forward's view)
         merged["local_head.weight"] = (state_dict["local_head.weight"].double() * rows[:, None]).to(basis.dtype)
         merged["local_head.bias"] = (state_dict["local_head.bias"].double() * rows).to(basis.dtype)
-        self.load_state_dict(merged)
+        return merged
 
     @torch.no_grad()
     def load_grown(self, state_dict: dict) -> tuple[int, int] | None:
@@ -685,8 +686,6 @@ class CompactMeshPredictor(_TemplateOffsets):
 
     def encode(self, normals: torch.Tensor) -> torch.Tensor:
         """The code (N, latent): the four strided stages (each followed by its residual blocks), then the FC layer."""
-        if self.blocks is None:
-            return self.encoder(normals)
         return self._encode_maps(normals)[0]
 
     def _aligned_offsets(self, vertices: torch.Tensor, maps: list[torch.Tensor]) -> torch.Tensor:
@@ -701,10 +700,7 @@ class CompactMeshPredictor(_TemplateOffsets):
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
         _check_image(normals, 3, self.input_size, "normals")
-        if self.aligned:
-            code, maps = self._encode_maps(normals)
-        else:
-            code, maps = self.encode(normals), []
+        code, maps = self._encode_maps(normals)
         h = self.decoder(code) * self.head_gain
         coeff = self.local_head(h).view(-1, self.modes, 3)
         local = self.local_scale * torch.matmul(self.basis.to(coeff.dtype), coeff)
