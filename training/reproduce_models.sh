@@ -72,7 +72,10 @@
 #   quarter of the rate (predictor-v16b: predictor-v16-damp64, predictor-v16-lowlr; val-*-v16b against v16_control).
 #   All level on validation. The aligned branch (the image sampled where each vertex lands) added to v16_control and
 #   trained on against an equal-cost control (predictor-v16c: predictor-v16-aligned, predictor-v16-control2; val-*-v16c).
-#   predictor-v17 trains v16_aligned on along one long cosine, a sitting at a time.
+#   predictor-v17 trains v16_aligned on along one long cosine, a sitting at a time; val-*-v17 sets it beside the eleventh
+#   and the trial's control on the validation split; all-v17 measures, exports, times and ships it as the twelfth pair
+#   (into OUT17 [out/v17]: eval-*-v17 export-v17 cost-v17 tradeoff-v17 compare-v17 ship-v17 refine-v17 repair-v17
+#   gallery-v17 docs-v2; session-v17 after it).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -134,6 +137,7 @@ OUT14=${OUT14:-out/v14}
 OUT15=${OUT15:-out/v15}
 RUNS16=${RUNS16:-runs/v16}
 OUT16=${OUT16:-out/v16}
+OUT17=${OUT17:-out/v17}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -205,6 +209,18 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
   sketchmesh train mesh --data "$DATA2" --init-mesh "$1" ${PRED_ARCH:-} ${TRAIN_EXTRA:-} --lambda-n "${6:-0.002}" --lr-mesh "${TRAIN_LR:-2e-4}" --iters "$3" \
     --threads "$5" --ckpt-every 250 --val-every 0 --quiet --max-minutes "$4" --input-normals normals16 \
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
+}
+
+candidate() {  # the shipped candidate of step $1 (its suffix, v15 or v17): CAND_RUN its run, CAND_BASE the run its
+  # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
+  # bundled pair compare-* sets beside it (as CAND_PREV_NAME)
+  case "${1##*-}" in
+    v15) CAND_RUN=$RUNS14/v15_control CAND_BASE=$RUNS14/v14_big_mc CAND_OUT=$OUT15 CAND_NAME=v15 CAND_PREV=074b7ab \
+         CAND_PREV_NAME=tenth ;;
+    v17) CAND_RUN=$RUNS16/v17_aligned CAND_BASE=$RUNS14/v15_control CAND_OUT=$OUT17 CAND_NAME=v17 CAND_PREV=36980ac \
+         CAND_PREV_NAME=eleventh ;;
+    *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
+  esac
 }
 
 play_sessions() {  # three scripted app sessions (sketchmesh --open SAMPLE --report) into folder $1, in the real window
@@ -1141,54 +1157,67 @@ EOF
       SHIP_OUT=$OUT14/final
       for s in eval-v14 eval-strong-v14 eval-side-v14 eval-gt-v14 export-v14 cost-v14 tradeoff-v14 compare-v14 ship-v14 \
                refine-v14 gallery-v14 docs-v2; do step "$s"; done ;;
-    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15)  # the eleventh (v15_control) against the tenth (v14_big_mc), plain
-      # and +mirror, test split (after the choice on the validation split, OUT14/fold/choice.txt)
-      eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
-      eval_against test "$OUT15/final/$EVAL_NAME" "$RUNS14/v15_control" "$RUNS14/v14_big_mc" ;;
-    export-v15)  # v15_control as float32, int8 and with float16-stored weights (what ships), beside the generator file
-      export_pair "$RUNS14/v15_control" "$OUT15/final" "$OUT8/models_fifth/generator.onnx"
-      rm -rf "$OUT15/final/models_fp16"
-      sketchmesh export "$RUNS14/v15_control" -o "$OUT15/final/models_fp16" --quantize fp16
-      cp "$OUT8/models_fifth/generator.onnx" "$OUT15/final/models_fp16/" ;;
-    cost-v15)  # every stage of the app's engine, plain and +mirror, the eleventh pair as shipped (float16-stored predictor
-      # weights; the variant "fp32" is the models as given) (run it alone: it times)
-      mkdir -p "$OUT15"
-      sketchmesh bench engine --models "$OUT15/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
-        --json "$OUT15/engine_v15.json" ;;
-    tradeoff-v15)  # error against run time: the eleventh pair at each precision, plain and +mirror, and template level;
-      # v15-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3 marked as
-      # what the app runs (run it alone: it times)
-      sketchmesh bench tradeoff --data "$DATA2" --variant "v15=$OUT15/final/models_fp32" \
-        --variant "v15-fp16w=$OUT15/final/models_fp16" \
+    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17)  # a shipped
+      # candidate (candidate: the eleventh, v15_control, against the tenth; the twelfth, v17_aligned, against the
+      # eleventh), plain and +mirror, test split (after the choice on the validation split)
+      candidate "$1"; eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
+      eval_against test "$CAND_OUT/final/$EVAL_NAME" "$CAND_RUN" "$CAND_BASE" ;;
+    export-v15|export-v17)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
+      # generator file
+      candidate "$1"
+      export_pair "$CAND_RUN" "$CAND_OUT/final" "$OUT8/models_fifth/generator.onnx"
+      rm -rf "$CAND_OUT/final/models_fp16"
+      sketchmesh export "$CAND_RUN" -o "$CAND_OUT/final/models_fp16" --quantize fp16
+      cp "$OUT8/models_fifth/generator.onnx" "$CAND_OUT/final/models_fp16/" ;;
+    cost-v15|cost-v17)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
+      # predictor weights; the variant "fp32" is the models as given) (run it alone: it times)
+      candidate "$1"; mkdir -p "$CAND_OUT"
+      sketchmesh bench engine --models "$CAND_OUT/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
+        --json "$CAND_OUT/engine_$CAND_NAME.json" ;;
+    tradeoff-v15|tradeoff-v17)  # error against run time: the candidate at each precision, plain and +mirror, and template
+      # level; NAME-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3
+      # marked as what the app runs (run it alone: it times)
+      candidate "$1"
+      sketchmesh bench tradeoff --data "$DATA2" --variant "$CAND_NAME=$CAND_OUT/final/models_fp32" \
+        --variant "$CAND_NAME-fp16w=$CAND_OUT/final/models_fp16" \
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
-        --bundled v15-fp16w:fp32+mirror --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$OUT15/final/tradeoff" ;;
-    compare-v15)  # the app's own path: the tenth (bundled at 074b7ab) and the eleventh as shipped (float16-stored
-      # predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
-      models_from_git 074b7ab "$OUT15/models_tenth"
-      sketchmesh eval --models "$OUT15/models_tenth" --models "$OUT15/final/models_fp16" --mirror-average --data "$DATA2" \
-        --views 4 --max-samples 39 --threads 2 --out "$OUT15/final/compare" ;;
-    ship-v15)  # the eleventh pair with its predictor's weights stored in float16 becomes the app's bundled models: the
-      # float32 export's accuracy and speed in half its file (15 MB; no file over 20 MiB in the repository)
-      SHIP_MODELS=$OUT15/final/models_fp16 step ship-v2 ;;
-    refine-v15)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-v15)
-      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$OUT15/final/refine" ;;
-    repair-v15)  # the fold repair on the shipped pair (after ship-v15), mirror averaged: bench refine at N = 0 and 3 with
-      # the repair off and on, one after the other on the same idle machine (run it alone: it times)
+        --bundled "$CAND_NAME-fp16w:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
+        --out "$CAND_OUT/final/tradeoff" ;;
+    compare-v15|compare-v17)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
+      # (float16-stored predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
+      candidate "$1"
+      models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
+      sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
+        --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$CAND_OUT/final/compare" ;;
+    ship-v15|ship-v17)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
+      # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
+      candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
+    refine-v15|refine-v17)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
+      candidate "$1"
+      sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$CAND_OUT/final/refine" ;;
+    repair-v15|repair-v17)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
+      # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
+      candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
-        --out "$OUT15/final/repair/off"
+        --out "$CAND_OUT/final/repair/off"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
-        --out "$OUT15/final/repair/on" ;;
-    gallery-v15)  # the gallery as the app shows it with the shipped pair (after ship-v15), and as it exports (folds
-      # repaired)
-      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$OUT15/final/gallery.png"
+        --out "$CAND_OUT/final/repair/on" ;;
+    gallery-v15|gallery-v17)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
+      # as it exports (folds repaired)
+      candidate "$1"
+      sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$CAND_OUT/final/gallery.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --elevation 0 --azimuth 90 \
-        -o "$OUT15/final/gallery_side.png"
+        -o "$CAND_OUT/final/gallery_side.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
-        -o "$OUT15/final/gallery_repair.png" ;;
-    all-v15)  # after predictor-v15-control and the choice on the validation split: measured, exported, timed, shipped
-      SHIP_OUT=$OUT15/final
-      for s in eval-v15 eval-strong-v15 eval-side-v15 eval-gt-v15 export-v15 cost-v15 tradeoff-v15 compare-v15 ship-v15 \
-               refine-v15 repair-v15 gallery-v15 docs-v2; do step "$s"; done ;;
+        -o "$CAND_OUT/final/gallery_repair.png" ;;
+    all-v15|all-v17)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
+      # shipped
+      candidate "$1"; SHIP_OUT=$CAND_OUT/final
+      local v=${1##*-}
+      for s in eval eval-strong eval-side eval-gt export cost tradeoff compare ship refine repair gallery; do
+        step "$s-$v"
+      done
+      step docs-v2 ;;
     control-v15)  # the eleventh predictor's silhouette-only control: predictor-v15-control's run (the same start,
       # v14_big_mc, recipe, mirror-consistency term, schedule and 3,500 iterations) with the normal weight 0, alone on two
       # threads (V15_MINUTES [25] at most; resumes)
@@ -1249,10 +1278,15 @@ EOF
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT16/valc_${EVAL_NAME#eval_}" "$RUNS16/v16_aligned" "$RUNS16/v16_control2" ;;
     predictor-v17)  # the long run: v16_aligned (the aligned branch, the one trial that was not level) trained on by the
-      # same recipe along one cosine of V17_ITERS [8000] iterations on two threads, V17_MINUTES [600] at most per
-      # sitting; resumes where a sitting stopped
+      # same recipe along one cosine of V17_ITERS [6500] iterations on two threads (about 85 minutes alone; its first
+      # 1,000 iterations ran along an 8,000-iteration cosine, at most 2% more rate), V17_MINUTES [600] at most per sitting;
+      # resumes where a sitting stopped
       PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
-        train7 "$RUNS16/v16_aligned" "$RUNS16/v17_aligned" "${V17_ITERS:-8000}" "${V17_MINUTES:-600}" 2 ;;
+        train7 "$RUNS16/v16_aligned" "$RUNS16/v17_aligned" "${V17_ITERS:-6500}" "${V17_MINUTES:-600}" 2 ;;
+    val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
+      # equal-time control (v16_control2), plain and +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT16/val17_${EVAL_NAME#eval_}" "$RUNS16/v17_aligned" "$RUNS16/v16_control2" "$RUNS14/v15_control" ;;
     val-v16b|val-strong-v16b|val-side-v16b)  # the two against v16_control, plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT16/valb_${EVAL_NAME#eval_}" "$RUNS16/v16_damp64" "$RUNS16/v16_lowlr" "$RUNS16/v16_control" ;;
@@ -1287,9 +1321,10 @@ EOF
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
       play_sessions "$OUT13/session" ;;
-    session-v15)  # session-v13 with the eleventh pair and today's defaults (mirror averaging, refinement, the export's
-      # fold repair): three scripted sessions in the real window, reports in OUT15/session (run it alone: it times)
-      play_sessions "$OUT15/session" ;;
+    session-v15|session-v17)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
+      # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
+      # it times)
+      candidate "$1"; play_sessions "$CAND_OUT/session" ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
                eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 \
