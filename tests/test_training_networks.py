@@ -23,6 +23,7 @@ from training.model.networks import (  # noqa: E402
     global_l1_loss,
     laplacian_basis,
     local_l1_loss,
+    sample_bilinear,
     sample_edge_pixels,
     smoothing_operator,
     sobel_magnitude,
@@ -637,12 +638,58 @@ def test_aligned_branch_reads_the_image_the_right_way_up(monkeypatch):
     net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=4)
     img = torch.zeros(1, 1, 32, 32)
     img[:, :, :16, 16:] = 1.0  # the upper right quadrant
-    net.aligned_mlp = torch.nn.Linear(4, 1, bias=False)  # the sampled value, weighted 1; the position, 0
+    net.aligned_mlp = torch.nn.Sequential(torch.nn.Linear(4, 1), torch.nn.ReLU(), torch.nn.Linear(1, 3, bias=False))
+    with torch.no_grad():  # the sampled value, weighted 1; the position, 0; out along x
+        net.aligned_mlp[0].weight.copy_(torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
+        net.aligned_mlp[0].bias.zero_()
+        net.aligned_mlp[2].weight.copy_(torch.tensor([[1.0 / net.local_scale], [0.0], [0.0]]))
+        pts = torch.tensor([[[0.3, 0.3, 0.0], [-0.3, 0.3, 0.0], [0.3, -0.3, 0.0], [-0.3, -0.3, 0.0]]]).repeat(1, 5, 1)
+        for small in (False, True):  # 20 vertices against 1,024 pixels: sampled first; against 16: projected first
+            got = net._aligned_offsets(pts, [img[:, :, ::8, ::8] if small else img])
+            torch.testing.assert_close(got[..., 0], torch.tensor([[1.0, 0.0, 0.0, 0.0]]).repeat(1, 5))
+            torch.testing.assert_close(got[..., 1:], torch.zeros(1, 20, 2))
+
+
+@pytest.mark.parametrize("size", [(32, 32), (8, 5), (1, 6), (1, 1)])
+def test_sample_bilinear_is_grid_sample_with_border_padding(size):
+    """sample_bilinear equals F.grid_sample (bilinear, border, align_corners=False) in value and in its gradient
+    with respect to the maps, at points inside, on the border and outside the image, for square, oblong,
+    one-row and one-pixel maps."""
+    torch.manual_seed(3)
+    h, w = size
+    maps = torch.randn(2, 5, h, w, dtype=torch.float64, requires_grad=True)
+    grid = torch.rand(2, 40, 2, dtype=torch.float64) * 3.0 - 1.5
+    grid[:, :4] = torch.tensor([[-1.0, -1.0], [1.0, 1.0], [1.0, -1.0], [0.0, 0.0]], dtype=torch.float64)
+    want = torch.nn.functional.grid_sample(maps, grid.unsqueeze(2), mode="bilinear", padding_mode="border",
+                                           align_corners=False).squeeze(-1).transpose(1, 2)
+    got = sample_bilinear(maps, grid)
+    torch.testing.assert_close(got, want, rtol=1e-12, atol=1e-12)
+    weights = torch.randn_like(want)
+    (g_want,) = torch.autograd.grad((want * weights).sum(), maps)
+    (g_got,) = torch.autograd.grad((got * weights).sum(), maps)
+    torch.testing.assert_close(g_got, g_want, rtol=1e-12, atol=1e-12)
+
+
+def test_aligned_branch_is_its_perceptron_on_the_concatenated_samples():
+    """The branch's first layer, summed block by block with small maps projected before they are sampled (the
+    cheaper order), equals the perceptron applied to the concatenation [maps sampled at the vertex; the vertex],
+    computed here directly, for maps both larger and smaller than the vertex count."""
+    F = torch.nn.functional
+    torch.manual_seed(11)
+    net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=12).double()
     with torch.no_grad():
-        net.aligned_mlp.weight.copy_(torch.tensor([[1.0 / net.local_scale, 0.0, 0.0, 0.0]]))
-        pts = torch.tensor([[[0.3, 0.3, 0.0], [-0.3, 0.3, 0.0], [0.3, -0.3, 0.0], [-0.3, -0.3, 0.0]]])
-        got = net._aligned_offsets(pts, [img]).squeeze(-1)
-    torch.testing.assert_close(got, torch.tensor([[1.0, 0.0, 0.0, 0.0]]))
+        net.aligned_mlp[2].weight.normal_()
+    verts = torch.randn(2, net.basis.shape[0], 3, dtype=torch.float64) * 0.4
+    maps = [torch.randn(2, 8, 32, 32, dtype=torch.float64), torch.randn(2, 16, 8, 8, dtype=torch.float64),
+            torch.randn(2, 32, 4, 4, dtype=torch.float64)]
+    assert maps[0].shape[-1] ** 2 > verts.shape[1] > maps[1].shape[-1] ** 2  # both orders are exercised
+    uv = framed_ndc(verts)
+    grid = torch.stack([uv[..., 0], -uv[..., 1]], dim=-1).unsqueeze(2)
+    sampled = [F.grid_sample(m, grid, mode="bilinear", padding_mode="border", align_corners=False).squeeze(-1)
+               for m in maps]
+    features = torch.cat([*sampled, verts.transpose(1, 2)], dim=1).transpose(1, 2)
+    want = net.local_scale * net.aligned_mlp(features)
+    torch.testing.assert_close(net._aligned_offsets(verts, maps), want, rtol=1e-10, atol=1e-12)
 
 
 def test_aligned_branch_starts_as_the_same_function_learns_and_exports(tmp_path):
@@ -677,7 +724,8 @@ def test_aligned_branch_starts_as_the_same_function_learns_and_exports(tmp_path)
                               code_version="t", sketches=sketches, normals64=normals64)
     assert report.max_abs_error <= PARITY_TOLERANCE
     sess = ort.InferenceSession(str(tmp_path / C.PREDICTOR_FILE), providers=["CPUExecutionProvider"])
-    assert "GridSample" in {n.op_type for n in __import__("onnx").load(str(tmp_path / C.PREDICTOR_FILE)).graph.node}
+    ops = {n.op_type for n in __import__("onnx").load(str(tmp_path / C.PREDICTOR_FILE)).graph.node}
+    assert "Gather" in ops and "GridSample" not in ops  # sample_bilinear's gathers, not ORT's slow GridSample
     outs = sess.run(None, {C.PREDICTOR_INPUT: x.numpy()})
     with torch.no_grad():
         ref = net(x)
