@@ -198,3 +198,32 @@ def test_a_failed_write_leaves_no_half_import(trained, exported, tmp_path, monke
     assert not (tmp_path / "imp" / "generator").exists() and not (tmp_path / "imp" / "predictor").exists()
     monkeypatch.setattr(from_onnx, "_write_run", real)
     assert len(import_models(exported["none"], tmp_path / "imp", data_dir=str(data))) == 2
+
+
+@pytest.mark.parametrize("quant", ["none", "fp16", "int8"])
+def test_a_predictor_with_the_aligned_branch_imports_as_it_was_trained(trained, tmp_path, quant):
+    """The aligned branch's weights come back from every export form: its first layer from the whole stored weight
+    that the graph slices (the 1x1 projections of the small maps are not taken for encoder convolutions), its last
+    from the folded, transposed MatMul constant; the imported network computes what the trained one does."""
+    from training.export.to_onnx import FP16_TOLERANCE
+
+    data, _ = trained
+    cfg = TrainConfig(mode="mesh", data_dir=str(data), out_dir=str(tmp_path / "run"), iters=3, batch=2,
+                      predictor_channels=8, predictor_hidden=32, predictor_latent=16, predictor_aligned=8,
+                      template_level=2, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
+                      device="cpu", extra_views=0, lr_mesh=1e-2, lr_warmup=0)
+    Trainer(cfg, progress=False).run()
+    export_run(tmp_path / "run", tmp_path / "models", quantize=quant)
+    (rep,) = import_models(tmp_path / "models", tmp_path / "imp", data_dir=str(data), roles=("predictor",))
+    _, original, _ = load_run(tmp_path / "run")
+    _, models, _ = load_run(tmp_path / "imp" / "predictor")
+    got, want = models["predictor"], original["predictor"]
+    assert float(want.aligned_mlp[2].weight.detach().abs().max()) > 0  # trained: the branch is not the zero it started as
+    tol = {"none": 1e-5, "fp16": FP16_TOLERANCE, "int8": INT8_TOLERANCE}[quant]
+    for k in ("aligned_mlp.0.weight", "aligned_mlp.0.bias", "aligned_mlp.2.weight", "aligned_mlp.2.bias"):
+        np.testing.assert_allclose(got.state_dict()[k].numpy(), want.state_dict()[k].numpy(), atol=tol)
+    _, normals = _inputs(data)
+    with torch.no_grad():
+        for a, b in zip(got(normals), want(normals)):
+            assert np.abs(a.numpy() - b.numpy()).max() <= tol
+    assert rep.max_abs_error <= tol

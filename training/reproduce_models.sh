@@ -75,7 +75,7 @@
 #   predictor-v17 trains v16_aligned on along one long cosine, a sitting at a time; val-*-v17 sets it beside the eleventh
 #   and the trial's control on the validation split; all-v17 measures, exports, times and ships it as the twelfth pair
 #   (into OUT17 [out/v17]: eval-*-v17 export-v17 cost-v17 tradeoff-v17 compare-v17 ship-v17 refine-v17 repair-v17
-#   gallery-v17 docs-v2; session-v17 after it).
+#   gallery-v17 docs-v2; session-v17 after it). predictor-v17-control trains the branchless control as long.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1283,6 +1283,11 @@ EOF
       # resumes where a sitting stopped
       PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
         train7 "$RUNS16/v16_aligned" "$RUNS16/v17_aligned" "${V17_ITERS:-6500}" "${V17_MINUTES:-600}" 2 ;;
+    predictor-v17-control)  # the twelfth's equal-cost control: v16_control2 (the aligned trial's control, no branch)
+      # trained on by the same recipe for V17C_ITERS [11700] iterations, 1.8x predictor-v17's 6,500 (the step-cost
+      # ratio measured in predictor-v16c), two threads, V17_MINUTES [600] at most per sitting; resumes
+      PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
+        train7 "$RUNS16/v16_control2" "$RUNS16/v17_control" "${V17C_ITERS:-11700}" "${V17_MINUTES:-600}" 2 ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
       # equal-time control (v16_control2), plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)

@@ -131,6 +131,8 @@ class _Graph:
         reshaped initialiser its output is added to)."""
         out = []
         for n in self.nodes:
+            if self._computed_weight(n):
+                continue  # the aligned branch's 1x1 projections: its first layer's weight, sliced (read from that)
             if n.op_type == "Conv":
                 w = self.weight(n.input[1])
                 b = self.weight(n.input[2]) if len(n.input) > 2 and n.input[2] else None
@@ -143,6 +145,14 @@ class _Graph:
                 raise ModelError(f"{self.path}: convolution {n.name or n.output[0]} has no constant weight")
             out.append((w, b))
         return out
+
+    def _computed_weight(self, node) -> bool:
+        """Whether a Conv / ConvInteger node's weight is computed in the graph from a slice of another weight (the
+        aligned branch projects its small maps so) rather than stored: Unsqueeze, or int8's on-the-fly quantiser."""
+        if node.op_type not in ("Conv", "ConvInteger") or node.input[1] in self.arrays:
+            return False
+        src = self.producer.get(node.input[1])
+        return src is not None and src.op_type in ("Unsqueeze", "DynamicQuantizeLinear")
 
     def _added_bias(self, name: str, depth: int = 4) -> np.ndarray | None:
         """Follow ``name`` through Cast/Mul to the Add that adds a (reshaped) constant bias."""
@@ -161,6 +171,16 @@ class _Graph:
             if node.op_type not in ("Cast", "Mul"):
                 return None
             name = node.output[0]
+        return None
+
+    def node_weight(self, name_part: str, op_types: tuple[str, ...] = ("MatMul", "MatMulInteger")) -> str | None:
+        """The name of the constant operand of the first ``op_types`` node whose name contains ``name_part`` (a
+        weight that export folded under a generated name, e.g. a transposed one)."""
+        for n in self.nodes:
+            if n.op_type in op_types and name_part in n.name:
+                for i in n.input:
+                    if self.weight(i[: -len("_quantized")] if i.endswith("_quantized") else i) is not None:
+                        return i[: -len("_quantized")] if i.endswith("_quantized") else i
         return None
 
     def matmul_constant(self, shape: tuple[int, int]) -> np.ndarray | None:
@@ -222,10 +242,9 @@ def load_predictor(graph: _Graph, cfg: TrainConfig, calibration: torch.Tensor | 
     """The compact predictor of ``cfg`` with the graph's weights; batch norms from ``calibration`` (module doc)."""
     from training.loop.trainer import build_models
 
-    if cfg.predictor_arch != "compact" or cfg.predictor_blocks or cfg.predictor_aligned:
-        raise ModelError(f"{graph.path}: only the compact predictor without residual blocks or aligned branch can be "
-                         f"imported (this one: {cfg.predictor_arch}, {cfg.predictor_blocks} blocks, aligned "
-                         f"{cfg.predictor_aligned})")
+    if cfg.predictor_arch != "compact" or cfg.predictor_blocks:
+        raise ModelError(f"{graph.path}: only the compact predictor without residual blocks can be imported (this "
+                         f"one: {cfg.predictor_arch}, {cfg.predictor_blocks} blocks)")
     p = build_models(cfg.replace(mode="mesh"))["predictor"]
     pairs = [(m, p.encoder[i + 1]) for i, m in enumerate(p.encoder) if isinstance(m, nn.Conv2d)]
     convs = graph.convolutions()
@@ -241,6 +260,14 @@ def load_predictor(graph: _Graph, cfg: TrainConfig, calibration: torch.Tensor | 
                         ("local_head", p.local_head), ("global_head", p.global_head)):
         _set(layer.weight, _linear_weight(graph, f"predictor.{name}.weight", layer), f"{name}.weight", graph.path)
         _set(layer.bias, graph.weight(f"predictor.{name}.bias"), f"{name}.bias", graph.path)
+    if cfg.predictor_aligned:  # the first layer is stored whole (export slices it); the last folded, transposed
+        first, last = p.aligned_mlp[0], p.aligned_mlp[2]
+        _set(first.weight, graph.weight("predictor.aligned_mlp.0.weight"), "aligned_mlp.0.weight", graph.path)
+        _set(first.bias, graph.weight("predictor.aligned_mlp.0.bias"), "aligned_mlp.0.bias", graph.path)
+        name = graph.node_weight("aligned_mlp.2")
+        _set(last.weight, None if name is None else _linear_weight(graph, name, last), "aligned_mlp.2.weight",
+             graph.path)
+        _set(last.bias, graph.weight("predictor.aligned_mlp.2.bias"), "aligned_mlp.2.bias", graph.path)
     basis = graph.matmul_constant(tuple(p.basis.shape))
     _set(p.basis, basis, "the offset basis", graph.path)
     _set_batch_norms(p, pairs, folded_bias, calibration)
