@@ -24,6 +24,10 @@ What the export changed, and how it is undone:
   deviation and start training from another function.)
 * **The offset basis** is the graph's own ``(V, M)`` matrix (the basis is not portable between
   machines: see :class:`training.model.networks.CompactMeshPredictor`).
+* **The aligned branch** (``predictor_aligned``): its first layer's weight is stored whole and sliced in the graph
+  (the export applies it map by map, the small maps through 1x1 convolutions whose weights are computed, so they
+  are not taken for the encoder's); its last layer's weight is a folded, transposed ``MatMul`` constant found by
+  the node's name.
 * **The discriminator** is not exported; a generator run gets a freshly initialised one (seeded),
   and its checkpoint says so (``extra["discriminator"] = "fresh"``).
 
@@ -179,8 +183,9 @@ class _Graph:
         for n in self.nodes:
             if n.op_type in op_types and name_part in n.name:
                 for i in n.input:
-                    if self.weight(i[: -len("_quantized")] if i.endswith("_quantized") else i) is not None:
-                        return i[: -len("_quantized")] if i.endswith("_quantized") else i
+                    base = i.removesuffix("_quantized")
+                    if self.weight(base) is not None:
+                        return base
         return None
 
     def matmul_constant(self, shape: tuple[int, int]) -> np.ndarray | None:
