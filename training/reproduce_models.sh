@@ -263,13 +263,15 @@ for name in sys.argv[2:]:
         rows = list(csv.DictReader(fh))
     it = np.array([int(r["iteration"]) for r in rows])
     rate = np.median([float(r["it_per_s"]) for r in rows])
+    walls = [float(r["wall_s"]) for r in rows]  # each sitting's clock starts again at 0 when a run resumes
+    ends = [w for w, nxt in zip(walls, walls[1:] + [0.0]) if nxt < w]
     first = [r for r, i in zip(rows, it) if i <= it.min() + 99]
     last = [r for r, i in zip(rows, it) if i > it.max() - 1000]
     (sil0, nrm0), (sil, nrm) = [[np.mean([float(r[k]) for r in part]) for k in ("mesh_silhouette", "mesh_normal")]
                                 for part in (first, last)]
     print(f"{name}: {it.max()} iterations, {float(rows[-1]['wall_s']) / 60:.1f} min, median {rate:.2f} it/s; "
           f"first 100: silhouette term {sil0:.4f}, normal error {nrm0:.1f}; last 1,000: silhouette term {sil:.4f}, "
-          f"normal error {nrm:.1f}")
+          f"normal error {nrm:.1f}; {len(ends)} sitting(s), {sum(ends) / 60:.1f} min in all")
 EOF
 }
 
@@ -1288,6 +1290,8 @@ EOF
       # ratio measured in predictor-v16c), two threads, V17_MINUTES [600] at most per sitting; resumes
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
         train7 "$RUNS16/v16_control2" "$RUNS16/v17_control" "${V17C_ITERS:-11700}" "${V17_MINUTES:-600}" 2 ;;
+    logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
+      log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
       # equal-time control (v16_control2), plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
