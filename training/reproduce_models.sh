@@ -76,6 +76,11 @@
 #   and the trial's control on the validation split; all-v17 measures, exports, times and ships it as the twelfth pair
 #   (into OUT17 [out/v17]: eval-*-v17 export-v17 cost-v17 tradeoff-v17 compare-v17 ship-v17 refine-v17 repair-v17
 #   gallery-v17 docs-v2; session-v17 after it). predictor-v17-control trains the branchless control as long.
+# The thirteenth candidate from a fresh clone (fresh-v18, into RUNS18 [runs/v18] and OUT18 [out/v18]; needs nothing but
+#   this repository): the dataset and the generator's images (data-v2 generated-v8 generated-mirror-v9 import-v8), the
+#   twelfth pair from git (models-twelfth-v18) imported back as a training run (import-v18), its predictor trained on
+#   by the twelfth's recipe along a new cosine (predictor-v18), set against it on the validation split (val-*-v18,
+#   logs-v18); all-v18 measures, exports, times and ships it like all-v17 (into OUT18/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -138,6 +143,8 @@ OUT15=${OUT15:-out/v15}
 RUNS16=${RUNS16:-runs/v16}
 OUT16=${OUT16:-out/v16}
 OUT17=${OUT17:-out/v17}
+RUNS18=${RUNS18:-runs/v18}
+OUT18=${OUT18:-out/v18}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -211,7 +218,7 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
-candidate() {  # the shipped candidate of step $1 (its suffix, v15 or v17): CAND_RUN its run, CAND_BASE the run its
+candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17 or v18): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME)
   case "${1##*-}" in
@@ -219,6 +226,8 @@ candidate() {  # the shipped candidate of step $1 (its suffix, v15 or v17): CAND
          CAND_PREV_NAME=tenth ;;
     v17) CAND_RUN=$RUNS16/v17_aligned CAND_BASE=$RUNS14/v15_control CAND_OUT=$OUT17 CAND_NAME=v17 CAND_PREV=36980ac \
          CAND_PREV_NAME=eleventh ;;
+    v18) CAND_RUN=$RUNS18/v18_more CAND_BASE=$RUNS18/twelfth/predictor CAND_OUT=$OUT18 CAND_NAME=v18 \
+         CAND_PREV=${TWELFTH:-daf5cee} CAND_PREV_NAME=twelfth ;;
     *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
   esac
 }
@@ -1159,24 +1168,24 @@ EOF
       SHIP_OUT=$OUT14/final
       for s in eval-v14 eval-strong-v14 eval-side-v14 eval-gt-v14 export-v14 cost-v14 tradeoff-v14 compare-v14 ship-v14 \
                refine-v14 gallery-v14 docs-v2; do step "$s"; done ;;
-    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17)  # a shipped
+    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18)  # a shipped
       # candidate (candidate: the eleventh, v15_control, against the tenth; the twelfth, v17_aligned, against the
       # eleventh), plain and +mirror, test split (after the choice on the validation split)
       candidate "$1"; eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
       eval_against test "$CAND_OUT/final/$EVAL_NAME" "$CAND_RUN" "$CAND_BASE" ;;
-    export-v15|export-v17)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
+    export-v15|export-v17|export-v18)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
       # generator file
       candidate "$1"
       export_pair "$CAND_RUN" "$CAND_OUT/final" "$OUT8/models_fifth/generator.onnx"
       rm -rf "$CAND_OUT/final/models_fp16"
       sketchmesh export "$CAND_RUN" -o "$CAND_OUT/final/models_fp16" --quantize fp16
       cp "$OUT8/models_fifth/generator.onnx" "$CAND_OUT/final/models_fp16/" ;;
-    cost-v15|cost-v17)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
+    cost-v15|cost-v17|cost-v18)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
       # predictor weights; the variant "fp32" is the models as given) (run it alone: it times)
       candidate "$1"; mkdir -p "$CAND_OUT"
       sketchmesh bench engine --models "$CAND_OUT/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
         --json "$CAND_OUT/engine_$CAND_NAME.json" ;;
-    tradeoff-v15|tradeoff-v17)  # error against run time: the candidate at each precision, plain and +mirror, and template
+    tradeoff-v15|tradeoff-v17|tradeoff-v18)  # error against run time: the candidate at each precision, plain and +mirror, and template
       # level; NAME-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3
       # marked as what the app runs (run it alone: it times)
       candidate "$1"
@@ -1185,26 +1194,26 @@ EOF
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
         --bundled "$CAND_NAME-fp16w:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
         --out "$CAND_OUT/final/tradeoff" ;;
-    compare-v15|compare-v17)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
+    compare-v15|compare-v17|compare-v18)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
       # (float16-stored predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
       candidate "$1"
       models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
       sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
         --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$CAND_OUT/final/compare" ;;
-    ship-v15|ship-v17)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
+    ship-v15|ship-v17|ship-v18)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
       # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
       candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
-    refine-v15|refine-v17)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
+    refine-v15|refine-v17|refine-v18)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$CAND_OUT/final/refine" ;;
-    repair-v15|repair-v17)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
+    repair-v15|repair-v17|repair-v18)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
       # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
         --out "$CAND_OUT/final/repair/off"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
         --out "$CAND_OUT/final/repair/on" ;;
-    gallery-v15|gallery-v17)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
+    gallery-v15|gallery-v17|gallery-v18)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
       # as it exports (folds repaired)
       candidate "$1"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$CAND_OUT/final/gallery.png"
@@ -1212,7 +1221,7 @@ EOF
         -o "$CAND_OUT/final/gallery_side.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
         -o "$CAND_OUT/final/gallery_repair.png" ;;
-    all-v15|all-v17)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
+    all-v15|all-v17|all-v18)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
       # shipped
       candidate "$1"; SHIP_OUT=$CAND_OUT/final
       local v=${1##*-}
@@ -1290,6 +1299,31 @@ EOF
       # ratio measured in predictor-v16c), two threads, V17_MINUTES [600] at most per sitting; resumes
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
         train7 "$RUNS16/v16_control2" "$RUNS16/v17_control" "${V17C_ITERS:-11700}" "${V17_MINUTES:-600}" 2 ;;
+    models-twelfth-v18)  # the twelfth bundled pair as shipped (git TWELFTH [daf5cee]) into OUT18/models_twelfth
+      models_from_git "${TWELFTH:-daf5cee}" "$OUT18/models_twelfth" ;;
+    import-v18)  # its predictor back as a training run (RUNS18/twelfth/predictor): weights from the ONNX file (float16-
+      # stored), batch norms calibrated on 256 of its generated training inputs, parity checked
+      [ -f "$OUT18/models_twelfth/mesh_predictor.onnx" ] || step models-twelfth-v18
+      [ -f "$RUNS18/twelfth/predictor/config.json" ] || \
+        sketchmesh import-models "$OUT18/models_twelfth" --out "$RUNS18/twelfth" --only predictor --data "$DATA2" --threads 2 ;;
+    predictor-v18)  # the twelfth trained on by its recipe (train7 with the aligned branch and the mirror-consistency
+      # term) along a new cosine of V18_ITERS [4500] iterations from a peak rate V18_LR [1e-4] (half the twelfth's: it
+      # starts trained), two threads, V18_MINUTES [600] at most per sitting; resumes
+      PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
+        TRAIN_LR=${V18_LR:-1e-4} train7 "$RUNS18/twelfth/predictor" "$RUNS18/v18_more" "${V18_ITERS:-4500}" \
+        "${V18_MINUTES:-600}" 2 ;;
+    val-v18|val-strong-v18|val-side-v18)  # v18_more against its start, the twelfth as imported, plain and +mirror,
+      # validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT18/val_${EVAL_NAME#eval_}" "$RUNS18/v18_more" "$RUNS18/twelfth/predictor" ;;
+    logs-v18)  # predictor-v18's training log
+      log_summary "$RUNS18" v18_more ;;
+    fresh-v18)  # the thirteenth candidate from a fresh clone: data, the generator's images, the twelfth imported,
+      # trained on, set against it on the validation split
+      [ -f "$DATA2/manifest.json" ] || step data-v2
+      [ -f "$DATA2/.cache/generated/normals16/info.json" ] || step generated-v8
+      [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
+      for s in import-v8 import-v18 predictor-v18 val-v18 val-strong-v18 val-side-v18 logs-v18; do step "$s"; done ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
       log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
@@ -1330,7 +1364,7 @@ EOF
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
       play_sessions "$OUT13/session" ;;
-    session-v15|session-v17)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
+    session-v15|session-v17|session-v18)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
       # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
       # it times)
       candidate "$1"; play_sessions "$CAND_OUT/session" ;;
