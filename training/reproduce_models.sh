@@ -1296,7 +1296,9 @@ EOF
         train7 "$RUNS16/v16_aligned" "$RUNS16/v17_aligned" "${V17_ITERS:-6500}" "${V17_MINUTES:-600}" 2 ;;
     predictor-v17-control)  # the twelfth's equal-cost control: v16_control2 (the aligned trial's control, no branch)
       # trained on by the same recipe for V17C_ITERS [11700] iterations, 1.8x predictor-v17's 6,500 (the step-cost
-      # ratio measured in predictor-v16c), two threads, V17_MINUTES [600] at most per sitting; resumes
+      # ratio measured in predictor-v16c), two threads, V17_MINUTES [600] at most per sitting; resumes. Its start was
+      # never in git: it runs only where predictor-v16c's runs are
+      [ -f "$RUNS16/v16_control2/config.json" ] || { echo "predictor-v17-control starts from $RUNS16/v16_control2 (predictor-v16c), which this machine lacks" >&2; exit 1; }
       PRED_ARCH=$BIG_ARCH TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
         train7 "$RUNS16/v16_control2" "$RUNS16/v17_control" "${V17C_ITERS:-11700}" "${V17_MINUTES:-600}" 2 ;;
     models-twelfth-v18)  # the twelfth bundled pair as shipped (git TWELFTH [daf5cee]) into OUT18/models_twelfth
@@ -1307,10 +1309,10 @@ EOF
       [ -f "$RUNS18/twelfth/predictor/config.json" ] || \
         sketchmesh import-models "$OUT18/models_twelfth" --out "$RUNS18/twelfth" --only predictor --data "$DATA2" --threads 2 ;;
     predictor-v18)  # the twelfth trained on by its recipe (train7 with the aligned branch and the mirror-consistency
-      # term) along a new cosine of V18_ITERS [4500] iterations from a peak rate V18_LR [1e-4] (half the twelfth's: it
+      # term) along a new cosine of V18_ITERS [5000] iterations from a peak rate V18_LR [1e-4] (half the twelfth's: it
       # starts trained), two threads, V18_MINUTES [600] at most per sitting; resumes
       PRED_ARCH="$BIG_ARCH --predictor-aligned ${V16_ALIGNED:-128}" TRAIN_EXTRA="--mirror-consistency ${V13B_MC:-50}" \
-        TRAIN_LR=${V18_LR:-1e-4} train7 "$RUNS18/twelfth/predictor" "$RUNS18/v18_more" "${V18_ITERS:-4500}" \
+        TRAIN_LR=${V18_LR:-1e-4} train7 "$RUNS18/twelfth/predictor" "$RUNS18/v18_more" "${V18_ITERS:-5000}" \
         "${V18_MINUTES:-600}" 2 ;;
     val-v18|val-strong-v18|val-side-v18)  # v18_more against its start, the twelfth as imported, plain and +mirror,
       # validation split

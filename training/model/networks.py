@@ -415,10 +415,10 @@ def sample_bilinear(maps: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
     x = ((grid[..., 0] + 1.0) * w - 1.0) / 2.0  # pixel coordinates, 0 at the first pixel's centre
     y = ((grid[..., 1] + 1.0) * h - 1.0) / 2.0
     x, y = x.clamp(0.0, w - 1.0).detach(), y.clamp(0.0, h - 1.0).detach()
-    x0, y0 = x.floor().clamp(max=w - 2 if w > 1 else 0), y.floor().clamp(max=h - 2 if h > 1 else 0)
+    x0, y0 = x.floor(), y.floor()
     fx, fy = (x - x0).unsqueeze(-1), (y - y0).unsqueeze(-1)
     x0, y0 = x0.long(), y0.long()
-    x1, y1 = (x0 + 1).clamp(max=w - 1), (y0 + 1).clamp(max=h - 1)
+    x1, y1 = (x0 + 1).clamp(max=w - 1), (y0 + 1).clamp(max=h - 1)  # on the last pixel fx (fy) is 0: x1 = x0 is weightless
     rows = maps.permute(0, 2, 3, 1).reshape(n * h * w, c)
     base = (torch.arange(n, device=maps.device) * (h * w)).view(n, 1)
 
