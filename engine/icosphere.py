@@ -82,6 +82,61 @@ def icosphere(level: int = PAPER_LEVEL, radius: float = TEMPLATE_RADIUS) -> Mesh
     return Mesh(v * radius, f)
 
 
+TEMPLATE_SHAPES = ("sphere", "legs")
+"""Template shapes a predictor may deform (ONNX metadata ``template_shape``; absent means ``"sphere"``).
+
+``"sphere"`` is the paper's icosphere. ``"legs"`` is the same icosphere (same vertices, faces and vertex
+order) with four cones pulled down from its lower half, one under each corner of the view, so a
+drawing of a chair, a table or a bench starts from a shape that already has legs: a genus-0 surface
+deformed by offsets (paper Eq. 4) cannot grow thin protrusions from a sphere through 2D losses alone
+(a direct fit of the sphere reaches voxel IoU 0.28 on a chair and 0.18 on a table where other categories
+reach 0.80-0.96; model card). Only the vertex positions differ, so the mirror pairing, the faces and
+everything that reads the topology stay those of the sphere.
+"""
+
+LEG_AZIMUTHS_DEG = (45.0, 135.0, 225.0, 315.0)
+"""Azimuths (degrees, from +x towards +z) of the legs' centres: symmetric under x -> -x and z -> -z."""
+LEG_POLAR_DEG = 135.0
+"""Angle of each leg's centre from +y (up): 45 degrees below the equator."""
+LEG_PATCH_DEG = 22.0
+"""Angular radius of the patch of sphere each leg is made of (about 20 vertices at level 3)."""
+LEG_DROP = 0.7
+"""How far (in template radii) the tip of a leg is pulled down, straight along -y."""
+LEG_SQUEEZE = 0.8
+"""How much a patch is narrowed towards its centre at the tip (0: not, 1: to a point); below 1 the map
+``r -> r (1 - s (1 - r / R))`` is monotonic, so no triangle folds."""
+
+
+def template_mesh(level: int = PAPER_LEVEL, radius: float = TEMPLATE_RADIUS, shape: str = "sphere") -> Mesh:
+    """The template of ``shape`` (:data:`TEMPLATE_SHAPES`) at an icosphere level: the icosphere's faces and
+    vertex order, its vertex positions moved for ``"legs"`` (each leg: the patch within
+    :data:`LEG_PATCH_DEG` of its centre, weight ``w = 1 - angle / patch``, narrowed by ``1 - LEG_SQUEEZE w``
+    towards the centre and pulled down by ``LEG_DROP w`` radii)."""
+    if shape not in TEMPLATE_SHAPES:
+        raise ValueError(f"template shape must be one of {TEMPLATE_SHAPES}, got {shape!r}")
+    sphere = icosphere(level, radius)
+    if shape == "sphere":
+        return sphere
+    return Mesh(_legged_vertices(int(level), float(radius)), sphere.faces)
+
+
+@lru_cache(maxsize=8)
+def _legged_vertices(level: int, radius: float) -> np.ndarray:
+    u, _ = _icosphere_arrays(level)  # unit sphere
+    v = u * radius
+    polar = np.radians(LEG_POLAR_DEG)
+    for az in np.radians(LEG_AZIMUTHS_DEG):
+        d = np.array([np.sin(polar) * np.cos(az), np.cos(polar), np.sin(polar) * np.sin(az)])
+        angle = np.arccos(np.clip(u @ d, -1.0, 1.0))
+        w = np.clip(1.0 - angle / np.radians(LEG_PATCH_DEG), 0.0, 1.0)[:, None]
+        centre = radius * d
+        moved = centre + (v - centre) * (1.0 - LEG_SQUEEZE * w) - w * np.array([0.0, LEG_DROP * radius, 0.0])
+        v = np.where(w > 0, moved, v)
+    v = v.astype(np.float32)
+    v.setflags(write=False)
+    return v
+
+
 @lru_cache(maxsize=8)
 def mirror_permutation(level: int = PAPER_LEVEL) -> np.ndarray:
     """(V,) int64: ``perm[i]`` is the vertex at vertex i's mirror image in the plane x = 0.

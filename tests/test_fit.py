@@ -144,6 +144,22 @@ def test_main_fit_writes_json_and_prints_table(tmp_path, capsys):
     assert len(record["history"]) == 4
 
 
+def test_fit_starts_from_the_chosen_template(tmp_path):
+    from engine.icosphere import template_mesh
+
+    target = _mesh(TARGETS["cube"]())
+    for shape in ("sphere", "legs"):
+        start = fit_mesh(target, views=2, iters=0, resolution=24, progress=False, template=shape).mesh
+        np.testing.assert_allclose(start.vertices, template_mesh(3, shape=shape).vertices, atol=1e-2)  # + the jitter
+        np.testing.assert_array_equal(start.faces, template_mesh(3).faces)
+    with pytest.raises(ValueError, match="template"):
+        fit_mesh(target, views=2, iters=0, resolution=24, progress=False, template="torus")
+    path = tmp_path / "box.ply"
+    trimesh.creation.box((0.8, 0.5, 0.4)).export(path)
+    assert main_fit(_args(tmp_path, path, template="legs")) == 0
+    assert json.loads((tmp_path / "out" / "fit.json").read_text())["template"] == "legs"
+
+
 def test_main_fit_bad_input_gives_clear_errors(tmp_path):
     missing = tmp_path / "nope.obj"
     with pytest.raises(MeshInputError, match="nope.obj"):

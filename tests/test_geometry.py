@@ -18,7 +18,16 @@ from engine.camera import (
     relative_camera,
     view_camera,
 )
-from engine.icosphere import icosphere, level_for_vertex_count, mirror_average, mirror_permutation
+from engine.icosphere import (
+    LEG_AZIMUTHS_DEG,
+    LEG_DROP,
+    LEG_POLAR_DEG,
+    icosphere,
+    level_for_vertex_count,
+    mirror_average,
+    mirror_permutation,
+    template_mesh,
+)
 from engine.mesh import Mesh, adjacent_face_pairs, face_normals, unique_edges, vertex_normals
 
 # ---- mesh value type -------------------------------------------------------------------
@@ -106,6 +115,43 @@ def test_mirror_permutation_is_the_templates_reflection(level):
     for bad in (-1, 7, 2.5):
         with pytest.raises(ValueError, match="level"):
             mirror_permutation(bad)
+
+
+@pytest.mark.parametrize("level", [2, 3, 4])
+def test_legged_template_is_the_sphere_with_four_legs(level):
+    sphere, legs = icosphere(level), template_mesh(level, shape="legs")
+    assert template_mesh(level) is not None and np.array_equal(template_mesh(level).vertices, sphere.vertices)
+    np.testing.assert_array_equal(legs.faces, sphere.faces)  # same topology and vertex order
+    v, s = np.asarray(legs.vertices, np.float64), np.asarray(sphere.vertices, np.float64)
+    moved = np.abs(v - s).max(1) > 0
+    assert np.all(s[moved, 1] < 0)  # only the lower half moves, and only down
+    assert np.all(v[moved, 1] < s[moved, 1])
+    # each leg's tip: the vertex nearest its centre, pulled down by about LEG_DROP radii (hand-computed bound: the
+    # nearest vertex is within one edge of the centre, where the weight is close to 1)
+    r = 0.5
+    for az in np.radians(LEG_AZIMUTHS_DEG):
+        p = np.radians(LEG_POLAR_DEG)
+        centre = r * np.array([np.sin(p) * np.cos(az), np.cos(p), np.sin(p) * np.sin(az)])
+        tip = int(np.argmin(np.linalg.norm(s - centre, axis=1)))
+        assert centre[1] - LEG_DROP * r - 1e-6 <= v[tip, 1] < centre[1] - 0.6 * LEG_DROP * r
+    # mirror-symmetric in x, so the sphere's mirror pairing holds for it
+    np.testing.assert_allclose(v[mirror_permutation(level)] * [-1, 1, 1], v, atol=1e-6)
+    # closed, outward and without folds: every face keeps the orientation it has on the sphere
+    tm = trimesh.Trimesh(v, np.asarray(legs.faces), process=False)
+    assert tm.is_watertight and tm.volume > 0
+    # no fold: the lower half is a height field over the xz plane on the sphere and stays one (a leg is pulled
+    # straight down and narrowed radially), so seen from below every lower face keeps its orientation
+    lower = np.all(s[np.asarray(sphere.faces), 1] < 0, axis=1)
+
+    def xz_area(x):
+        t = x[np.asarray(sphere.faces)[lower]]
+        a, b = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+        return a[:, 0] * b[:, 2] - a[:, 2] * b[:, 0]
+
+    assert np.all(np.sign(xz_area(v)) == np.sign(xz_area(s))) and np.all(xz_area(s) != 0)
+    assert tm.area_faces.min() > 0
+    with pytest.raises(ValueError, match="template shape"):
+        template_mesh(level, shape="torus")
 
 
 def test_mirror_average_by_hand():

@@ -145,6 +145,8 @@ OUT16=${OUT16:-out/v16}
 OUT17=${OUT17:-out/v17}
 RUNS18=${RUNS18:-runs/v18}
 OUT18=${OUT18:-out/v18}
+RUNS19=${RUNS19:-runs/v19}
+OUT19=${OUT19:-out/v19}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1326,6 +1328,27 @@ EOF
       [ -f "$DATA2/.cache/generated/normals16/info.json" ] || step generated-v8
       [ -f "$DATA2/.cache/generated/normals16_mirror/info.json" ] || step generated-mirror-v9
       for s in import-v8 import-v18 predictor-v18 val-v18 val-strong-v18 val-side-v18 logs-v18; do step "$s"; done ;;
+    fit-legs-v19)  # fit-v6 from the legged template (engine.icosphere.template_mesh "legs": the sphere with four legs
+      # pulled down from its lower half): does a template with legs lift the direct fit of chairs and tables?
+      mkdir -p "$OUT19"
+      sketchmesh bench fit --procedural 1 --template legs --json "$OUT19/fit_legs.json" ;;
+    gpucarry-v19)  # what the fourteenth candidate's GPU stage starts from: the thirteenth predictor as trained
+      # (RUNS18/v18_more, fresh-v18) in gpucarry/v18_more, and the generator that made its inputs in gpucarry/models_fifth;
+      # then, on the lent GPU (carry .whl gpucarry; 9.5 minutes; the exact call is in the model card):
+      #   INPUTS=generated ARCH="$BIG_ARCH --predictor-aligned 128" EXTRA="--mirror-consistency 50" \
+      #     SPECS="g19 512 3e-4" END=540 bash training/gpu_predictor.sh gpucarry/v18_more
+      [ -f "$RUNS18/v18_more/config.json" ] || { echo "gpucarry-v19 starts from $RUNS18/v18_more: run fresh-v18 first" >&2; exit 1; }
+      gpucarry "$RUNS18/v18_more"
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      mkdir -p gpucarry/models_fifth && cp "$OUT8"/models_fifth/*.onnx gpucarry/models_fifth/ ;;
+    fetch-gpu-v19)  # what gpu_predictor.sh brought back for the fourteenth (GPU_FILES) -> RUNS19/NAME
+      RUNS2=$RUNS19 step fetch-gpu ;;
+    val-v19|val-strong-v19|val-side-v19)  # the GPU stage (RUNS19/g19) against its start, the thirteenth (RUNS18/v18_more),
+      # plain and +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT19/val_${EVAL_NAME#eval_}" "$RUNS19/g19" "$RUNS18/v18_more" ;;
+    logs-v19)  # the GPU stage's training log beside the thirteenth's
+      log_summary "$RUNS19" g19; log_summary "$RUNS18" v18_more ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
       log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's

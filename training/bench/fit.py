@@ -30,7 +30,7 @@ import numpy as np
 from engine.camera import Camera, frame_camera, look_at, normalize_vertices
 from engine.errors import MeshInputError, SketchmeshError
 from engine.fileio import atomic_write_text
-from engine.icosphere import PAPER_LEVEL, icosphere
+from engine.icosphere import PAPER_LEVEL, TEMPLATE_SHAPES, template_mesh
 from engine.mesh import Mesh
 from training._torch import require_torch
 from training.evaluation.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
@@ -152,6 +152,7 @@ def fit_mesh(
     edge_range: int = 1,
     silhouette: str = "eq1",
     soft_sigma: float = 1e-4,
+    template: str = "sphere",
 ) -> FitResult:
     """Deform the icosphere so its renders match the target's from ``views`` views.
 
@@ -176,6 +177,8 @@ def fit_mesh(
             ``u`` and the local offsets are ``(I + lambda L)^-1 u``; 0 moves the offsets directly.
         edge_range, silhouette, soft_sigma: the silhouette-gradient variant (see
             :func:`training.render.soft.rasterize_for_loss`); the final scores use the hard silhouette.
+        template: the template's shape (:data:`engine.icosphere.TEMPLATE_SHAPES`: the sphere, or the sphere
+            with four legs), at ``level``.
 
     Returns:
         :class:`FitResult`.
@@ -201,13 +204,15 @@ def fit_mesh(
         raise ValueError(f"normal_region must be one of {NORMAL_REGIONS}, got {normal_region!r}")
     if not (isinstance(smoothing, (int, float)) and math.isfinite(smoothing) and smoothing >= 0):
         raise ValueError(f"smoothing must be finite and >= 0, got {smoothing!r}")
+    if template not in TEMPLATE_SHAPES:
+        raise ValueError(f"template must be one of {TEMPLATE_SHAPES}, got {template!r}")
     view_list = fit_views(views)
 
     from training.render import cameras_to_tensor, rasterize
     from training.render.soft import rasterize_for_loss
 
     dtype = torch.float32
-    template = icosphere(level)
+    template = template_mesh(level, shape=template)
     gen = torch.Generator().manual_seed(int(seed))
     base = torch.tensor(np.array(template.vertices), dtype=dtype)  # (V, 3)
     base = base + INIT_JITTER * torch.randn(base.shape, generator=gen, dtype=dtype)
@@ -332,8 +337,9 @@ def load_target_mesh(path: str) -> Mesh:
 
 def _fit_options(args) -> dict:
     """The optional fit settings given on the command line (``--normal-region``, ``--smoothing``, ``--lr``,
-    ``--voxel-centres``)."""
-    opts = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr") if getattr(args, k, None) is not None}
+    ``--template``, ``--voxel-centres``)."""
+    opts = {k: getattr(args, k) for k in ("normal_region", "smoothing", "lr", "template")
+            if getattr(args, k, None) is not None}
     if getattr(args, "voxel_centres", False):
         opts["voxel_surface"] = False
     return opts
@@ -402,7 +408,8 @@ def main_fit(args) -> int:
     finally:
         torch.set_num_threads(before)
     print(f"fit: {target_path} ({target.num_vertices} vertices, {target.num_faces} faces) "
-          f"<- icosphere level {level} ({result.mesh.num_vertices} vertices)")
+          f"<- {getattr(args, 'template', None) or 'sphere'} template, icosphere level {level} "
+          f"({result.mesh.num_vertices} vertices)")
     print(format_fit_report(result, iters, resolution))
     if json_path:
         record = {
@@ -413,6 +420,7 @@ def main_fit(args) -> int:
             "resolution": resolution,
             "seed": seed,
             "template_level": level,
+            "template": getattr(args, "template", None) or "sphere",
             "silhouette_iou": result.silhouette_iou,
             "voxel_iou": result.voxel_iou,
             "chamfer_l1": result.chamfer_l1,
