@@ -81,6 +81,11 @@
 #   twelfth pair from git (models-twelfth-v18) imported back as a training run (import-v18), its predictor trained on
 #   by the twelfth's recipe along a new cosine (predictor-v18), set against it on the validation split (val-*-v18,
 #   logs-v18); all-v18 measures, exports, times and ships it like all-v17 (into OUT18/final).
+# The fourteenth candidate (after fresh-v18, into RUNS19 [runs/v19] and OUT19 [out/v19]): the direct fit from a template
+#   with legs (fit-legs-v19); the thirteenth predictor continued on a lent GPU at batch 512 on the generator's images
+#   (gpucarry-v19, training/gpu_predictor.sh, fetch-gpu-v19), set against it on the validation split (val-*-v19,
+#   logs-v19), then trained on here at batch 32 and at batch 128 side by side (predictor-v19, val-*-v19b); all-v19
+#   measures, exports, times and ships the chosen run (V19_RUN [g19]) like all-v18 (into OUT19/final).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -220,7 +225,7 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
-candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17 or v18): CAND_RUN its run, CAND_BASE the run its
+candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18 or v19): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME)
   case "${1##*-}" in
@@ -230,6 +235,8 @@ candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17 or v18):
          CAND_PREV_NAME=eleventh ;;
     v18) CAND_RUN=$RUNS18/v18_more CAND_BASE=$RUNS18/twelfth/predictor CAND_OUT=$OUT18 CAND_NAME=v18 \
          CAND_PREV=${TWELFTH:-daf5cee} CAND_PREV_NAME=twelfth ;;
+    v19) CAND_RUN=$RUNS19/${V19_RUN:-g19} CAND_BASE=$RUNS18/v18_more CAND_OUT=$OUT19 CAND_NAME=v19 \
+         CAND_PREV=${THIRTEENTH:-652c7ea} CAND_PREV_NAME=thirteenth ;;
     *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
   esac
 }
@@ -1170,24 +1177,24 @@ EOF
       SHIP_OUT=$OUT14/final
       for s in eval-v14 eval-strong-v14 eval-side-v14 eval-gt-v14 export-v14 cost-v14 tradeoff-v14 compare-v14 ship-v14 \
                refine-v14 gallery-v14 docs-v2; do step "$s"; done ;;
-    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18)  # a shipped
+    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18|eval-v19|eval-strong-v19|eval-side-v19|eval-gt-v19)  # a shipped
       # candidate (candidate: the eleventh, v15_control, against the tenth; the twelfth, v17_aligned, against the
       # eleventh), plain and +mirror, test split (after the choice on the validation split)
       candidate "$1"; eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
       eval_against test "$CAND_OUT/final/$EVAL_NAME" "$CAND_RUN" "$CAND_BASE" ;;
-    export-v15|export-v17|export-v18)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
+    export-v15|export-v17|export-v18|export-v19)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
       # generator file
       candidate "$1"
       export_pair "$CAND_RUN" "$CAND_OUT/final" "$OUT8/models_fifth/generator.onnx"
       rm -rf "$CAND_OUT/final/models_fp16"
       sketchmesh export "$CAND_RUN" -o "$CAND_OUT/final/models_fp16" --quantize fp16
       cp "$OUT8/models_fifth/generator.onnx" "$CAND_OUT/final/models_fp16/" ;;
-    cost-v15|cost-v17|cost-v18)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
+    cost-v15|cost-v17|cost-v18|cost-v19)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
       # predictor weights; the variant "fp32" is the models as given) (run it alone: it times)
       candidate "$1"; mkdir -p "$CAND_OUT"
       sketchmesh bench engine --models "$CAND_OUT/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
         --json "$CAND_OUT/engine_$CAND_NAME.json" ;;
-    tradeoff-v15|tradeoff-v17|tradeoff-v18)  # error against run time: the candidate at each precision, plain and +mirror, and template
+    tradeoff-v15|tradeoff-v17|tradeoff-v18|tradeoff-v19)  # error against run time: the candidate at each precision, plain and +mirror, and template
       # level; NAME-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3
       # marked as what the app runs (run it alone: it times)
       candidate "$1"
@@ -1196,26 +1203,26 @@ EOF
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
         --bundled "$CAND_NAME-fp16w:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
         --out "$CAND_OUT/final/tradeoff" ;;
-    compare-v15|compare-v17|compare-v18)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
+    compare-v15|compare-v17|compare-v18|compare-v19)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
       # (float16-stored predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
       candidate "$1"
       models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
       sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
         --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$CAND_OUT/final/compare" ;;
-    ship-v15|ship-v17|ship-v18)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
+    ship-v15|ship-v17|ship-v18|ship-v19)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
       # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
       candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
-    refine-v15|refine-v17|refine-v18)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
+    refine-v15|refine-v17|refine-v18|refine-v19)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$CAND_OUT/final/refine" ;;
-    repair-v15|repair-v17|repair-v18)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
+    repair-v15|repair-v17|repair-v18|repair-v19)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
       # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
         --out "$CAND_OUT/final/repair/off"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
         --out "$CAND_OUT/final/repair/on" ;;
-    gallery-v15|gallery-v17|gallery-v18)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
+    gallery-v15|gallery-v17|gallery-v18|gallery-v19)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
       # as it exports (folds repaired)
       candidate "$1"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$CAND_OUT/final/gallery.png"
@@ -1223,7 +1230,7 @@ EOF
         -o "$CAND_OUT/final/gallery_side.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
         -o "$CAND_OUT/final/gallery_repair.png" ;;
-    all-v15|all-v17|all-v18)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
+    all-v15|all-v17|all-v18|all-v19)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
       # shipped
       candidate "$1"; SHIP_OUT=$CAND_OUT/final
       local v=${1##*-}
@@ -1343,12 +1350,25 @@ EOF
       mkdir -p gpucarry/models_fifth && cp "$OUT8"/models_fifth/*.onnx gpucarry/models_fifth/ ;;
     fetch-gpu-v19)  # what gpu_predictor.sh brought back for the fourteenth (GPU_FILES) -> RUNS19/NAME
       RUNS2=$RUNS19 step fetch-gpu ;;
+    predictor-v19)  # the GPU stage trained on here side by side at equal wall time, one thread each, by the thirteenth's
+      # recipe (train7, aligned branch, mirror-consistency term): at its batch of 32 from peak 1e-4 (v19_b32,
+      # V19_B32_ITERS [1900]) and at batch 128 from peak 2e-4 (v19_b128, V19_B128_ITERS [430]): is the CPU recipe's
+      # plateau its gradient noise? V19_MINUTES [42] at most each; resumes
+      [ -f "$RUNS19/g19/config.json" ] || { echo "predictor-v19 starts from $RUNS19/g19: run the GPU stage and fetch-gpu-v19 first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 \
+        train7 "$RUNS19/g19" "$RUNS19/v19_b32" "${V19_B32_ITERS:-1900}" "${V19_MINUTES:-42}" 1 &
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50 --batch 128" TRAIN_LR=2e-4 \
+        train7 "$RUNS19/g19" "$RUNS19/v19_b128" "${V19_B128_ITERS:-430}" "${V19_MINUTES:-42}" 1 &
+      wait ;;
+    val-v19b|val-strong-v19b|val-side-v19b)  # predictor-v19's two runs against their start g19, +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT19/valb_${EVAL_NAME#eval_}" "$RUNS19/v19_b32" "$RUNS19/v19_b128" "$RUNS19/g19" ;;
     val-v19|val-strong-v19|val-side-v19)  # the GPU stage (RUNS19/g19) against its start, the thirteenth (RUNS18/v18_more),
       # plain and +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT19/val_${EVAL_NAME#eval_}" "$RUNS19/g19" "$RUNS18/v18_more" ;;
-    logs-v19)  # the GPU stage's training log beside the thirteenth's
-      log_summary "$RUNS19" g19; log_summary "$RUNS18" v18_more ;;
+    logs-v19)  # the GPU stage's training log beside the thirteenth's, and predictor-v19's runs (when they have run)
+      log_summary "$RUNS19" g19 v19_b32 v19_b128; log_summary "$RUNS18" v18_more ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
       log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
@@ -1389,7 +1409,7 @@ EOF
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
       play_sessions "$OUT13/session" ;;
-    session-v15|session-v17|session-v18)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
+    session-v15|session-v17|session-v18|session-v19)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
       # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
       # it times)
       candidate "$1"; play_sessions "$CAND_OUT/session" ;;
