@@ -69,6 +69,18 @@
 #   ARCH="--predictor-channels 64 --predictor-hidden 1024" SPECS="big12b 512 5e-4" CAL=0 ITERS=1400 WARMUP=20 END=245 \
 #     bash training/gpu_predictor.sh runs/gpu10/big12
 #     (1,400 iterations in 188 s: 4,300 at batch 512, about 2.2 M samples; reproduce_models.sh fetch-gpu-v12, val-gpu-v12)
+# The fourteenth candidate's GPU stage (2026-11-27, H100, 14 minutes of device time held): the thirteenth predictor (a slim
+# copy of runs/v18/v18_more, reproduce_models.sh gpucarry-v19) on the generator's images, in two calls on one machine
+# (carry .whl and gpucarry/v18_more; GEN_MODELS=assets/models, the same generator file as the fifth's, so the carry
+# stays under 64 MiB):
+#   INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-aligned 128" \
+#     EXTRA="--mirror-consistency 50" SPECS="g19 512 3e-4" END=560 GEN_MODELS=assets/models \
+#     bash training/gpu_predictor.sh gpucarry/v18_more
+#     (ran out of its 600 s building the 256-pixel data and the two generated sets, before any training: on the H100
+#     they take about ten minutes, not the five estimated above, so a first INPUTS=generated call only builds)
+#   the same with CAL=0 ITERS=600 WARMUP=20 END=190
+#     (the data reused, the last 3,984 mirrored views generated in 18 s; 600 iterations at batch 512 in 122 s,
+#     4.9 it/s: 307,000 samples, about twice what the thirteenth's 59 CPU minutes saw; reproduce_models.sh fetch-gpu-v19)
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}

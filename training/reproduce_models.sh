@@ -1341,9 +1341,8 @@ EOF
       sketchmesh bench fit --procedural 1 --template legs --json "$OUT19/fit_legs.json" ;;
     gpucarry-v19)  # what the fourteenth candidate's GPU stage starts from: the thirteenth predictor as trained
       # (RUNS18/v18_more, fresh-v18) in gpucarry/v18_more, and the generator that made its inputs in gpucarry/models_fifth;
-      # then, on the lent GPU (carry .whl gpucarry; 9.5 minutes; the exact call is in the model card):
-      #   INPUTS=generated ARCH="$BIG_ARCH --predictor-aligned 128" EXTRA="--mirror-consistency 50" \
-      #     SPECS="g19 512 3e-4" END=540 bash training/gpu_predictor.sh gpucarry/v18_more
+      # then, on the lent GPU, the two calls in training/gpu_predictor.sh's header (carry .whl and gpucarry/v18_more;
+      # GEN_MODELS=assets/models, the same generator file), then fetch-gpu-v19
       [ -f "$RUNS18/v18_more/config.json" ] || { echo "gpucarry-v19 starts from $RUNS18/v18_more: run fresh-v18 first" >&2; exit 1; }
       gpucarry "$RUNS18/v18_more"
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
