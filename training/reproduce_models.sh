@@ -1340,13 +1340,11 @@ EOF
       mkdir -p "$OUT19"
       sketchmesh bench fit --procedural 1 --template legs --json "$OUT19/fit_legs.json" ;;
     gpucarry-v19)  # what the fourteenth candidate's GPU stage starts from: the thirteenth predictor as trained
-      # (RUNS18/v18_more, fresh-v18) in gpucarry/v18_more, and the generator that made its inputs in gpucarry/models_fifth;
+      # (RUNS18/v18_more, fresh-v18) in gpucarry/v18_more;
       # then, on the lent GPU, the two calls in training/gpu_predictor.sh's header (carry .whl and gpucarry/v18_more;
       # GEN_MODELS=assets/models, the same generator file), then fetch-gpu-v19
       [ -f "$RUNS18/v18_more/config.json" ] || { echo "gpucarry-v19 starts from $RUNS18/v18_more: run fresh-v18 first" >&2; exit 1; }
-      gpucarry "$RUNS18/v18_more"
-      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      mkdir -p gpucarry/models_fifth && cp "$OUT8"/models_fifth/*.onnx gpucarry/models_fifth/ ;;
+      gpucarry "$RUNS18/v18_more" ;;
     fetch-gpu-v19)  # what gpu_predictor.sh brought back for the fourteenth (GPU_FILES) -> RUNS19/NAME
       RUNS2=$RUNS19 step fetch-gpu ;;
     predictor-v19)  # the GPU stage trained on here side by side at equal wall time, one thread each, by the thirteenth's
