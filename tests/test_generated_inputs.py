@@ -194,6 +194,32 @@ def test_config_and_cli_errors_are_one_line(setup, tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr and "--workers" in r.stderr
 
 
+BUNDLED = Path(__file__).resolve().parents[1] / "assets" / "models"
+
+
+def test_the_torch_runner_stores_what_onnx_runtime_stores(setup):
+    """--torch-device (the GPU machine's path): the generator rebuilt from the bundled file runs in torch; every row,
+    plain and mirrored, equals ONNX Runtime's row within the float16 storage, and other settings are refused."""
+    data, fixture_models = setup
+    for mirror in (False, True):
+        ort = build_generated(data, BUNDLED, f"ort{mirror}", progress=False, mirror=mirror)
+        tch = build_generated(data, BUNDLED, f"torch{mirror}", progress=False, mirror=mirror, torch_device="cpu",
+                              workers=2)
+        assert ort["done"] == tch["done"] == tch["views"] == 12
+        rows = np.arange(len(open_generated(data, f"ort{mirror}").done))
+        rows = rows[open_generated(data, f"ort{mirror}").done]
+        a = open_generated(data, f"ort{mirror}").rows(rows).astype(np.float32)
+        b = open_generated(data, f"torch{mirror}").rows(rows).astype(np.float32)
+        assert a.max() > 0.3 and a.std() > 0.01  # the generator painted something: not a constant image
+        np.testing.assert_allclose(b, a, atol=2e-3)
+    with pytest.raises(DatasetError, match="torch device"):
+        build_generated(data, BUNDLED, "bad", progress=False, torch_device="banana")
+    from engine.errors import ModelError
+
+    with pytest.raises(ModelError, match="training config"):  # a file that is no exported generator
+        build_generated(data, fixture_models, "fixture", progress=False, torch_device="cpu")
+
+
 def test_a_mirrored_set_is_the_engine_on_the_flipped_drawing(setup):
     """--mirror rows: the app engine's normals of the same augmented drawing flipped left to right."""
     data, models = setup

@@ -81,6 +81,9 @@
 #   the same with CAL=0 ITERS=600 WARMUP=20 END=190
 #     (the data reused, the last 3,984 mirrored views generated in 18 s; 600 iterations at batch 512 in 122 s,
 #     4.9 it/s: 307,000 samples, about twice what the thirteenth's 59 CPU minutes saw; reproduce_models.sh fetch-gpu-v19)
+# Since then the generated sets run the generator in torch on the GPU (`data generated --torch-device cuda`; the
+# workers only draw the sketches), so a first call should leave most of its ten minutes to training (not yet run
+# on a GPU; on the CPU its rows equal ONNX Runtime's within float16, tests/test_generated_inputs.py).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}
@@ -152,6 +155,8 @@ if [ "$INPUTS" = generated ]; then
   for set in normals16 normals16_mirror; do
     echo "== generated $set $(elapsed) s (resumes: a second call finds it built)"
     flags=(); [ "$set" = normals16_mirror ] && flags=(--mirror)
+    # the generator in torch on the GPU (data generated --torch-device): ONNX Runtime on the 16 cores took about 220 s a set
+    [ "$DEVICE" = cuda ] && flags+=(--torch-device cuda)
     "${SM[@]}" data generated "$DATA" --models "$GEN_MODELS" --name "$set" "${flags[@]}" --workers "$(nproc)" --no-progress \
       || exit 1
   done

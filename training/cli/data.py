@@ -111,6 +111,9 @@ def register(commands, bench) -> None:
     gen.add_argument("--mirror", action="store_true",
                      help="run the generator on every drawing flipped left to right: the exact inputs of mirrored "
                           "training items (train mesh --mirror P --mirror-inputs NAME)")
+    gen.add_argument("--torch-device", metavar="DEVICE", default=None,
+                     help="run the generator in torch on DEVICE (cuda, cpu) instead of ONNX Runtime: the same network "
+                          "rebuilt from the file, for a GPU machine; the workers only draw the sketches")
     gen.add_argument("--no-progress", action="store_true", help="no progress bar")
     gen.set_defaults(func=cmd_generated)
 
@@ -200,7 +203,7 @@ def cmd_generated(args: argparse.Namespace) -> int:
 
     r = build_generated(args.dir, args.models, args.name, split=args.split, augment_strength=args.augment_strength,
                         seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes,
-                        mirror=args.mirror)
+                        mirror=args.mirror, torch_device=args.torch_device)
     print(f"{r['written']} views generated in {r['seconds']:.1f} s; {r['done']} of the {r['views']} views of the "
           f"{args.split} split are done")
     return 0

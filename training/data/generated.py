@@ -17,6 +17,11 @@ the generator's image of the unflipped drawing only approximates what the genera
 flipped one (the generator is not mirror-equivariant). Pair it with its unmirrored partner through
 ``TrainConfig.mirror_inputs``.
 
+On a GPU machine (``torch_device``) the same network runs in torch instead: the generator is rebuilt from
+the ONNX file (:func:`training.export.from_onnx.generator_from_onnx`, the weights ``import-models`` reads), the
+sketches are still drawn by the worker processes, and the rows agree with ONNX Runtime's within their float16
+storage. There, ONNX Runtime on the CPU cores is most of the cost of a set (about 220 views a second on 16 cores).
+
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
 them, so a killed build keeps what it finished. A folder made from another generator, augmentation,
 seed, mirroring or dataset state is refused with a message naming the difference.
@@ -114,23 +119,33 @@ def _worker_init(generator_path: str, threads: int) -> None:
     _WORKER["gen"] = load_generator(generator_path, threads=threads)
 
 
-def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
-    """(file, (views, s, s, 3) float16) for one shape file: augmented sketches through the generator."""
-    path, file, first, n_views, strength, seed, small, mirror = args
-    from engine.pipeline import downsample_normals
+def _sketches(args: tuple) -> tuple[str, np.ndarray]:
+    """(file, (views, S, S) float32): one shape file's augmented sketches (flipped left to right when mirrored)."""
+    path, file, first, n_views, strength, seed, _small, mirror = args
     from training.data.augment import render_sketch
     from training.data.render import view_polylines
 
-    gen = _WORKER["gen"]
     with np.load(path) as z:
         arrays = {k: z[k] for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
         size = int(z["sketch"].shape[-1])
-    out = np.empty((n_views, small, small, 3), np.float16)
+    out = np.empty((n_views, size, size), np.float32)
     for v in range(n_views):
         sketch = render_sketch(view_polylines(arrays, v), size, strength, [seed, ROW_SEED, first + v])
-        if mirror:  # the same drawing, flipped left to right (pixel centres are symmetric about the middle)
-            sketch = sketch[..., ::-1]
-        (normals,) = gen.session.run(None, {gen.input_name: np.ascontiguousarray(sketch, np.float32)[None, None]})
+        # a mirrored row: the same drawing, flipped left to right (pixel centres are symmetric about the middle)
+        out[v] = sketch[..., ::-1] if mirror else sketch
+    return file, out
+
+
+def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
+    """(file, (views, s, s, 3) float16) for one shape file: augmented sketches through the generator (ONNX Runtime)."""
+    from engine.pipeline import downsample_normals
+
+    small = args[6]
+    gen = _WORKER["gen"]
+    file, sketches = _sketches(args)
+    out = np.empty((len(sketches), small, small, 3), np.float16)
+    for v, sketch in enumerate(sketches):
+        (normals,) = gen.session.run(None, {gen.input_name: np.ascontiguousarray(sketch)[None, None]})
         if not np.all(np.isfinite(normals)):
             raise DatasetError(f"{gen.path}: the generator produced NaN or inf for {file} view {v}")
         small_img = downsample_normals(np.clip(normals, 0.0, 1.0).astype(np.float32), small)
@@ -138,9 +153,34 @@ def _shape_rows(args: tuple) -> tuple[str, np.ndarray]:
     return file, out
 
 
+TORCH_BATCH = 64
+"""Sketches per forward pass of the torch runner (256 x 256: about 0.1 GB of activations at width 16)."""
+
+
+def _torch_rows(net, device, file: str, sketches: np.ndarray, small: int) -> np.ndarray:
+    """(views, s, s, 3) float16: the engine's rows computed in torch (clip to [0, 1], then the area average, which for
+    an integer factor is the mean of each block, as OpenCV's INTER_AREA)."""
+    import torch
+    import torch.nn.functional as F
+
+    size = sketches.shape[-1]
+    if size % small:
+        raise DatasetError(f"the torch runner needs the sketch side ({size}) to be a multiple of {small}")
+    out = []
+    with torch.no_grad():
+        for i in range(0, len(sketches), TORCH_BATCH):
+            x = torch.from_numpy(np.ascontiguousarray(sketches[i:i + TORCH_BATCH]))[:, None].to(device)
+            y = net(x).float()
+            if not bool(torch.isfinite(y).all()):
+                raise DatasetError(f"the generator produced NaN or inf for {file} (torch on {device})")
+            y = F.avg_pool2d(y.clamp(0.0, 1.0), size // small)
+            out.append(y.permute(0, 2, 3, 1).cpu().numpy().astype(np.float16))
+    return np.concatenate(out)
+
+
 def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name: str, *, split: str = "train",
                     augment_strength: float = 0.5, seed: int = 0, workers: int = 1, progress: bool = True,
-                    max_shapes: int | None = None, mirror: bool = False) -> dict:
+                    max_shapes: int | None = None, mirror: bool = False, torch_device: str | None = None) -> dict:
     """Run the generator of ``models_dir`` over every view of ``split`` of the dataset ``root``; resumable.
 
     Args:
@@ -154,6 +194,8 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
         progress: tqdm bar.
         max_shapes: only the first this many shapes still to do (a bounded call; it resumes later).
         mirror: run the generator on every drawing flipped left to right (module doc).
+        torch_device: run the generator in torch on this device ("cuda", "cpu") instead of ONNX Runtime (module doc);
+            the workers then only draw the sketches.
 
     Returns:
         {"written": views this call, "done": views of the split done, "views": views of the split, "seconds"}.
@@ -175,6 +217,19 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     root = Path(root)
     manifest = load_manifest(root)
     gen_path, _ = model_paths(resolve_models_dir(models_dir))
+    net = device = None
+    if torch_device is not None:
+        import torch
+
+        from training.export.from_onnx import generator_from_onnx
+
+        try:
+            device = torch.device(torch_device)
+        except (RuntimeError, ValueError) as exc:
+            raise DatasetError(f"--torch-device {torch_device!r} is not a torch device ({exc})") from None
+        if device.type == "cuda" and not torch.cuda.is_available():
+            raise DatasetError(f"--torch-device {torch_device}: this torch has no CUDA device")
+        net = generator_from_onnx(gen_path).to(device)
     arrays = open_mesh_cache(root, manifest)
     n_rows = int(arrays.normals64.shape[0])
     small = int(arrays.normals64.shape[1])
@@ -226,7 +281,20 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
             last_save = time.monotonic()
 
     try:
-        if workers > 1 and len(todo) > 1:
+        if net is not None:  # the workers draw, torch runs the generator here
+            def torch_record(file: str, sketches: np.ndarray) -> None:
+                record(file, _torch_rows(net, device, file, sketches, small))
+
+            if workers > 1 and len(todo) > 1:
+                import multiprocessing as mp
+
+                with mp.get_context("spawn").Pool(workers) as pool:
+                    for file, sketches in pool.imap_unordered(_sketches, todo):
+                        torch_record(file, sketches)
+            else:
+                for t in todo:
+                    torch_record(*_sketches(t))
+        elif workers > 1 and len(todo) > 1:
             import multiprocessing as mp
 
             with mp.get_context("spawn").Pool(workers, initializer=_worker_init, initargs=(str(gen_path), 1)) as pool:

@@ -243,6 +243,17 @@ def load_generator(graph: _Graph, cfg: TrainConfig) -> nn.Module:
     return g.eval()
 
 
+def generator_from_onnx(path: str | Path) -> nn.Module:
+    """The generator of an exported ``generator.onnx`` as a torch module in eval mode (the weights and config
+    :func:`import_models` reads; float16-stored weights come back as float32). ModelError names a file that is
+    missing, broken or not an exported generator."""
+    path = Path(path)
+    if not path.is_file():
+        raise ModelError(f"no generator file {path}")
+    graph = _Graph(path)
+    return load_generator(graph, _config(graph, contract.ROLE_GENERATOR))
+
+
 def load_predictor(graph: _Graph, cfg: TrainConfig, calibration: torch.Tensor | None) -> nn.Module:
     """The compact predictor of ``cfg`` with the graph's weights; batch norms from ``calibration`` (module doc)."""
     from training.loop.trainer import build_models
