@@ -197,27 +197,30 @@ def test_config_and_cli_errors_are_one_line(setup, tmp_path):
 BUNDLED = Path(__file__).resolve().parents[1] / "assets" / "models"
 
 
-def test_the_torch_runner_stores_what_onnx_runtime_stores(setup):
-    """--torch-device (the GPU machine's path): the generator rebuilt from the bundled file runs in torch; every row,
-    plain and mirrored, equals ONNX Runtime's row within the float16 storage, and other settings are refused."""
+def test_the_torch_runner_stores_what_onnx_runtime_stores(setup, tmp_path):
+    """data generated --torch-device (the GPU machine's path): the generator rebuilt from the bundled file runs in
+    torch; every row, plain and mirrored, equals ONNX Runtime's row within the float16 storage."""
+    from engine.errors import ModelError
+    from training.export.from_onnx import generator_from_onnx
+
     data, fixture_models = setup
+    net = generator_from_onnx(BUNDLED / "generator.onnx")
     for mirror in (False, True):
         ort = build_generated(data, BUNDLED, f"ort{mirror}", progress=False, mirror=mirror)
-        tch = build_generated(data, BUNDLED, f"torch{mirror}", progress=False, mirror=mirror, torch_device="cpu",
+        tch = build_generated(data, BUNDLED, f"torch{mirror}", progress=False, mirror=mirror, torch_generator=net,
                               workers=2)
         assert ort["done"] == tch["done"] == tch["views"] == 12
-        rows = np.arange(len(open_generated(data, f"ort{mirror}").done))
-        rows = rows[open_generated(data, f"ort{mirror}").done]
+        done = open_generated(data, f"ort{mirror}").done
+        rows = np.flatnonzero(done)
         a = open_generated(data, f"ort{mirror}").rows(rows).astype(np.float32)
         b = open_generated(data, f"torch{mirror}").rows(rows).astype(np.float32)
         assert a.max() > 0.3 and a.std() > 0.01  # the generator painted something: not a constant image
         np.testing.assert_allclose(b, a, atol=2e-3)
-    with pytest.raises(DatasetError, match="torch device"):
-        build_generated(data, BUNDLED, "bad", progress=False, torch_device="banana")
-    from engine.errors import ModelError
-
     with pytest.raises(ModelError, match="training config"):  # a file that is no exported generator
-        build_generated(data, fixture_models, "fixture", progress=False, torch_device="cpu")
+        generator_from_onnx(fixture_models / "generator.onnx")
+    cli = [sys.executable, "-m", "sketchmesh", "data", "generated", str(data), "--models", str(BUNDLED), "--name", "c"]
+    r = subprocess.run([*cli, "--torch-device", "banana"], capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and "Traceback" not in r.stderr and "not a torch device" in r.stderr
 
 
 def test_a_mirrored_set_is_the_engine_on_the_flipped_drawing(setup):

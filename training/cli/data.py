@@ -201,9 +201,23 @@ def cmd_generated(args: argparse.Namespace) -> int:
     _require_torch()  # the dataset's mesh-array cache is built by the training package
     from training.data.generated import build_generated
 
+    net = None
+    if args.torch_device is not None:  # the generator rebuilt from its file, in torch on that device
+        import torch
+
+        from engine.models import model_paths, resolve_models_dir
+        from training.export.from_onnx import generator_from_onnx
+
+        try:
+            device = torch.device(args.torch_device)
+        except (RuntimeError, ValueError) as exc:
+            raise SketchmeshError(f"--torch-device {args.torch_device!r} is not a torch device ({exc})") from None
+        if device.type == "cuda" and not torch.cuda.is_available():
+            raise SketchmeshError(f"--torch-device {args.torch_device}: this torch has no CUDA device")
+        net = generator_from_onnx(model_paths(resolve_models_dir(args.models))[0]).to(device)
     r = build_generated(args.dir, args.models, args.name, split=args.split, augment_strength=args.augment_strength,
                         seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes,
-                        mirror=args.mirror, torch_device=args.torch_device)
+                        mirror=args.mirror, torch_generator=net)
     print(f"{r['written']} views generated in {r['seconds']:.1f} s; {r['done']} of the {r['views']} views of the "
           f"{args.split} split are done")
     return 0

@@ -17,9 +17,9 @@ the generator's image of the unflipped drawing only approximates what the genera
 flipped one (the generator is not mirror-equivariant). Pair it with its unmirrored partner through
 ``TrainConfig.mirror_inputs``.
 
-On a GPU machine (``torch_device``) the same network runs in torch instead: the generator is rebuilt from
-the ONNX file (:func:`training.export.from_onnx.generator_from_onnx`, the weights ``import-models`` reads), the
-sketches are still drawn by the worker processes, and the rows agree with ONNX Runtime's within their float16
+On a GPU machine (``torch_generator``; ``data generated --torch-device``) the same network runs in torch
+instead: the caller rebuilds the generator from the ONNX file (:func:`training.export.from_onnx.generator_from_onnx`,
+the weights ``import-models`` reads) and moves it to the GPU, the sketches are still drawn by the worker processes, and the rows agree with ONNX Runtime's within their float16
 storage. There, ONNX Runtime on the CPU cores is most of the cost of a set (about 220 views a second on 16 cores).
 
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
@@ -180,7 +180,7 @@ def _torch_rows(net, device, file: str, sketches: np.ndarray, small: int) -> np.
 
 def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name: str, *, split: str = "train",
                     augment_strength: float = 0.5, seed: int = 0, workers: int = 1, progress: bool = True,
-                    max_shapes: int | None = None, mirror: bool = False, torch_device: str | None = None) -> dict:
+                    max_shapes: int | None = None, mirror: bool = False, torch_generator=None) -> dict:
     """Run the generator of ``models_dir`` over every view of ``split`` of the dataset ``root``; resumable.
 
     Args:
@@ -194,8 +194,8 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
         progress: tqdm bar.
         max_shapes: only the first this many shapes still to do (a bounded call; it resumes later).
         mirror: run the generator on every drawing flipped left to right (module doc).
-        torch_device: run the generator in torch on this device ("cuda", "cpu") instead of ONNX Runtime (module doc);
-            the workers then only draw the sketches.
+        torch_generator: a torch module computing the generator of ``models_dir`` (module doc), run on the device
+            its parameters are on instead of ONNX Runtime; the workers then only draw the sketches.
 
     Returns:
         {"written": views this call, "done": views of the split done, "views": views of the split, "seconds"}.
@@ -217,19 +217,10 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     root = Path(root)
     manifest = load_manifest(root)
     gen_path, _ = model_paths(resolve_models_dir(models_dir))
-    net = device = None
-    if torch_device is not None:
-        import torch
-
-        from training.export.from_onnx import generator_from_onnx
-
-        try:
-            device = torch.device(torch_device)
-        except (RuntimeError, ValueError) as exc:
-            raise DatasetError(f"--torch-device {torch_device!r} is not a torch device ({exc})") from None
-        if device.type == "cuda" and not torch.cuda.is_available():
-            raise DatasetError(f"--torch-device {torch_device}: this torch has no CUDA device")
-        net = generator_from_onnx(gen_path).to(device)
+    net, device = torch_generator, None
+    if net is not None:
+        device = next(net.parameters()).device
+        net.eval()
     arrays = open_mesh_cache(root, manifest)
     n_rows = int(arrays.normals64.shape[0])
     small = int(arrays.normals64.shape[1])
