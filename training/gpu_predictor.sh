@@ -81,12 +81,17 @@
 #   the same with CAL=0 ITERS=600 WARMUP=20 END=190
 #     (the data reused, the last 3,984 mirrored views generated in 18 s; 600 iterations at batch 512 in 122 s,
 #     4.9 it/s: 307,000 samples, about twice what the thirteenth's 59 CPU minutes saw; reproduce_models.sh fetch-gpu-v19)
+# INIT may also be an exported models folder (its mesh_predictor.onnx; e.g. assets/models, which travels with the
+# tree): with INPUTS=generated the predictor is imported there (`import-models --only predictor`, batch norms
+# calibrated on the generated set just built), so a session needs no local run, data or carry beyond .whl:
+#   INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-aligned 128" \
+#     EXTRA="--mirror-consistency 50" SPECS="g20 512 3e-4" GEN_MODELS=assets/models bash training/gpu_predictor.sh assets/models
 # Since then the generated sets run the generator in torch on the GPU (`data generated --torch-device cuda`; the
 # workers only draw the sketches), so a first call should leave most of its ten minutes to training (not yet run
 # on a GPU; on the CPU its rows equal ONNX Runtime's within float16, tests/test_generated_inputs.py).
 set -uo pipefail
 
-INIT=${1:?usage: gpu_predictor.sh INIT_RUN|fresh}
+INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
 # INPUTS [true]: what the predictor reads. "true": the true normal images (the 64x64 data only). "generated": the
 # generator's images of the training sketches and of their flipped drawings, as the app feeds it (the seventh's recipe,
 # reproduce_models.sh train7: --input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges), built here
@@ -160,6 +165,13 @@ if [ "$INPUTS" = generated ]; then
     "${SM[@]}" data generated "$DATA" --models "$GEN_MODELS" --name "$set" "${flags[@]}" --workers "$(nproc)" --no-progress \
       || exit 1
   done
+fi
+if [ -f "$INIT/mesh_predictor.onnx" ]; then  # INIT an exported models folder (e.g. assets/models): import it here
+  [ "$INPUTS" = generated ] || { echo "importing $INIT needs INPUTS=generated (its batch norms are calibrated on the generator's images)" >&2; exit 1; }
+  echo "== import $INIT $(elapsed) s"
+  rm -rf /tmp/imported
+  "${SM[@]}" import-models "$INIT" --out /tmp/imported --only predictor --data "$DATA" --threads "$(nproc)" || exit 1
+  INIT_ARGS=(--init-mesh /tmp/imported/predictor)
 fi
 if [ "$CAL" -gt 0 ]; then
   echo "== calibrate $(elapsed) s"
