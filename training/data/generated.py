@@ -19,8 +19,9 @@ flipped one (the generator is not mirror-equivariant). Pair it with its unmirror
 
 On a GPU machine (``torch_generator``; ``data generated --torch-device``) the same network runs in torch
 instead: the caller rebuilds the generator from the ONNX file (:func:`training.export.from_onnx.generator_from_onnx`,
-the weights ``import-models`` reads) and moves it to the GPU, the sketches are still drawn by the worker processes, and the rows agree with ONNX Runtime's within their float16
-storage. There, ONNX Runtime on the CPU cores is most of the cost of a set (about 220 views a second on 16 cores).
+the weights ``import-models`` reads) and moves it to the GPU; the worker processes still draw the sketches, and the
+rows agree with ONNX Runtime's within their float16 storage. There, ONNX Runtime on the CPU cores is most of the
+cost of a set (about 220 views a second on 16 cores).
 
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
 them, so a killed build keeps what it finished. A folder made from another generator, augmentation,
