@@ -83,15 +83,14 @@ def icosphere(level: int = PAPER_LEVEL, radius: float = TEMPLATE_RADIUS) -> Mesh
 
 
 TEMPLATE_SHAPES = ("sphere", "legs")
-"""Template shapes a predictor may deform (ONNX metadata ``template_shape``; absent means ``"sphere"``).
+"""Template shapes of :func:`template_mesh` (``sketchmesh bench fit --template``; the predictors deform the sphere).
 
 ``"sphere"`` is the paper's icosphere. ``"legs"`` is the same icosphere (same vertices, faces and vertex
-order) with four cones pulled down from its lower half, one under each corner of the view, so a
-drawing of a chair, a table or a bench starts from a shape that already has legs: a genus-0 surface
-deformed by offsets (paper Eq. 4) cannot grow thin protrusions from a sphere through 2D losses alone
-(a direct fit of the sphere reaches voxel IoU 0.28 on a chair and 0.18 on a table where other categories
-reach 0.80-0.96; model card). Only the vertex positions differ, so the mirror pairing, the faces and
-everything that reads the topology stay those of the sphere.
+order) with four cones pulled down from its lower half, one under each corner of the view: the test of
+whether a start that already has legs lets a deformed genus-0 surface fit a chair or a table, which the
+sphere does not (direct fit: voxel IoU 0.28 on a chair and 0.18 on a table where other categories reach
+0.80-0.96). It does not (``fit-legs-v19``, model card). Only the vertex positions differ, so the mirror
+pairing, the faces and everything that reads the topology stay those of the sphere.
 """
 
 LEG_AZIMUTHS_DEG = (45.0, 135.0, 225.0, 315.0)

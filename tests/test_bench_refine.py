@@ -50,9 +50,10 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
     assert main(["bench", "refine", "--data", str(data), "--out", str(out), "--models", str(models),
                  "--steps", "0", "2", "--styles", "clean", "--max-samples", "2", "--quiet"]) == 0
     records = json.loads((out / "refine.json").read_text())["records"]
-    # (no bound on the times: speed is the benchmark's to print, and on a loaded machine even N = 0's no-op can take a
-    # millisecond)
-    assert [rec["steps"] for rec in records] == [0, 2] and all(rec["refine_ms_p50"] >= 0.0 for rec in records)
+    # no bound on the times (speed is the benchmark's to print; on a loaded machine even N = 0's no-op can take a
+    # millisecond), but they add up: sketch -> mesh includes the refinement
+    assert [rec["steps"] for rec in records] == [0, 2]
+    assert all(0.0 <= rec["refine_ms_p50"] <= rec["latency_ms_p50"] for rec in records)
     for rec in records:
         assert 0.0 <= rec["sil_iou_target"] <= 1.0 and 0.0 <= rec["voxel_iou"] <= 1.0 and rec["samples"] == 2
     assert (out / "refine.png").stat().st_size > 0 and "| clean | 2 |" in (out / "refine.md").read_text()

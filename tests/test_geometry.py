@@ -136,7 +136,7 @@ def test_legged_template_is_the_sphere_with_four_legs(level):
         assert centre[1] - LEG_DROP * r - 1e-6 <= v[tip, 1] < centre[1] - 0.6 * LEG_DROP * r
     # mirror-symmetric in x, so the sphere's mirror pairing holds for it
     np.testing.assert_allclose(v[mirror_permutation(level)] * [-1, 1, 1], v, atol=1e-6)
-    # closed, outward and without folds: every face keeps the orientation it has on the sphere
+    # closed and outward
     tm = trimesh.Trimesh(v, np.asarray(legs.faces), process=False)
     assert tm.is_watertight and tm.volume > 0
     # no fold: the lower half is a height field over the xz plane on the sphere and stays one (a leg is pulled

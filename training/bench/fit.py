@@ -398,6 +398,7 @@ def main_fit(args) -> int:
     seed = _int_arg(args, "seed", 0, 2**31 - 1, 0)
     level = _int_arg(args, "level", 0, 5, PAPER_LEVEL)  # optional flag; the paper's level 3 when absent
     threads = _int_arg(args, "threads", 1, 256, DEFAULT_FIT_THREADS)  # optional flag
+    template = getattr(args, "template", None) or "sphere"  # optional flag
     json_path = getattr(args, "json", None)
     target = load_target_mesh(str(target_path))
     before = torch.get_num_threads()
@@ -408,7 +409,7 @@ def main_fit(args) -> int:
     finally:
         torch.set_num_threads(before)
     print(f"fit: {target_path} ({target.num_vertices} vertices, {target.num_faces} faces) "
-          f"<- {getattr(args, 'template', None) or 'sphere'} template, icosphere level {level} "
+          f"<- {template} template, icosphere level {level} "
           f"({result.mesh.num_vertices} vertices)")
     print(format_fit_report(result, iters, resolution))
     if json_path:
@@ -420,7 +421,7 @@ def main_fit(args) -> int:
             "resolution": resolution,
             "seed": seed,
             "template_level": level,
-            "template": getattr(args, "template", None) or "sphere",
+            "template": template,
             "silhouette_iou": result.silhouette_iou,
             "voxel_iou": result.voxel_iou,
             "chamfer_l1": result.chamfer_l1,

@@ -11,6 +11,7 @@ import math
 
 from engine.cliutil import float_in, int_in, one_line_errors, positive_int
 from engine.contract import MIRRORED_VARIANTS
+from engine.icosphere import TEMPLATE_SHAPES
 
 _resolution = int_in(1, 2048)
 _non_negative_float = float_in(0.0, math.inf)
@@ -95,7 +96,7 @@ def register(commands, bench) -> None:
     q.add_argument("--views", type=positive_int, default=8)
     q.add_argument("--iters", type=positive_int, default=None, help="Adam iterations (default 300)")
     q.add_argument("--level", type=int_in(0, 5), default=None, help="icosphere level of the template (default 3)")
-    q.add_argument("--template", choices=("sphere", "legs"), default=None,
+    q.add_argument("--template", choices=TEMPLATE_SHAPES, default=None,
                    help="the template's shape: the icosphere (default), or the icosphere with four legs")
     q.add_argument("--lr", type=float_in(1e-6, 10.0), default=None)
     q.add_argument("--smoothing", type=float_in(0.0, 1e4), default=None,

@@ -272,30 +272,25 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
             _save_done(folder, done)
             last_save = time.monotonic()
 
+    if net is not None:  # the workers only draw; torch runs the generator here
+        work, init, initargs = _sketches, None, ()
+
+        def handle(file: str, sketches: np.ndarray) -> None:
+            record(file, _torch_rows(net, device, file, sketches, small))
+    else:  # the workers draw and run the generator (ONNX Runtime, one thread each)
+        work, init, initargs, handle = _shape_rows, _worker_init, (str(gen_path), 1), record
     try:
-        if net is not None:  # the workers draw, torch runs the generator here
-            def torch_record(file: str, sketches: np.ndarray) -> None:
-                record(file, _torch_rows(net, device, file, sketches, small))
-
-            if workers > 1 and len(todo) > 1:
-                import multiprocessing as mp
-
-                with mp.get_context("spawn").Pool(workers) as pool:
-                    for file, sketches in pool.imap_unordered(_sketches, todo):
-                        torch_record(file, sketches)
-            else:
-                for t in todo:
-                    torch_record(*_sketches(t))
-        elif workers > 1 and len(todo) > 1:
+        if workers > 1 and len(todo) > 1:
             import multiprocessing as mp
 
-            with mp.get_context("spawn").Pool(workers, initializer=_worker_init, initargs=(str(gen_path), 1)) as pool:
-                for file, block in pool.imap_unordered(_shape_rows, todo):
-                    record(file, block)
+            with mp.get_context("spawn").Pool(workers, initializer=init, initargs=initargs) as pool:
+                for file, block in pool.imap_unordered(work, todo):
+                    handle(file, block)
         else:
-            _worker_init(str(gen_path), 2 if workers == 1 else 1)
+            if net is None:
+                _worker_init(str(gen_path), 2 if workers == 1 else 1)
             for t in todo:
-                record(*_shape_rows(t))
+                handle(*work(t))
     finally:
         normals.flush()
         _save_done(folder, done)
