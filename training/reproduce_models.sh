@@ -86,6 +86,11 @@
 #   (gpucarry-v19, training/gpu_predictor.sh, fetch-gpu-v19), set against it on the validation split (val-*-v19,
 #   logs-v19), then trained on here at batch 32 and at batch 128 side by side (predictor-v19, val-*-v19b); all-v19
 #   measures, exports, times and ships the chosen run (V19_RUN [g19]) like all-v18 (into OUT19/final).
+# The fifteenth candidate (into RUNS20 [runs/v20] and OUT20 [out/v20]): the predictor generalises worse than it fits
+#   (train split 0.630, val 0.563: overfit-v20), so twice the shapes: DATA20 [data/proc200e4], 200 per category, the
+#   first 100 those of DATA2 (data-v20; the generator's images of its train split: generated-v20, generated-mirror-v20),
+#   the fourteenth predictor trained on it by predictor-v19's batch-32 recipe (predictor-v20, against v19_b32: the same
+#   start, schedule and samples on DATA2), set against both on DATA2's validation split (val-*-v20, logs-v20).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -152,6 +157,9 @@ RUNS18=${RUNS18:-runs/v18}
 OUT18=${OUT18:-out/v18}
 RUNS19=${RUNS19:-runs/v19}
 OUT19=${OUT19:-out/v19}
+RUNS20=${RUNS20:-runs/v20}
+OUT20=${OUT20:-out/v20}
+DATA20=${DATA20:-data/proc200e4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -218,14 +226,15 @@ compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from 
 
 train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterations (Adam 2e-4 cosine), $4 minutes at most,
   # $5 threads, normal weight $6 [0.002] (its gradient kept off the outline), on the generator's images with half of every
-  # batch mirrored from the generator's images of the flipped drawings; resumes (TRAIN_LR: another peak rate)
+  # batch mirrored from the generator's images of the flipped drawings; resumes (TRAIN_LR: another peak rate;
+  # TRAIN_DATA: another dataset than DATA2 with the same generated sets)
   # shellcheck disable=SC2086  # PRED_ARCH: predictor size flags of a run of another size (BIG_ARCH); TRAIN_EXTRA: more flags
-  sketchmesh train mesh --data "$DATA2" --init-mesh "$1" ${PRED_ARCH:-} ${TRAIN_EXTRA:-} --lambda-n "${6:-0.002}" --lr-mesh "${TRAIN_LR:-2e-4}" --iters "$3" \
+  sketchmesh train mesh --data "${TRAIN_DATA:-$DATA2}" --init-mesh "$1" ${PRED_ARCH:-} ${TRAIN_EXTRA:-} --lambda-n "${6:-0.002}" --lr-mesh "${TRAIN_LR:-2e-4}" --iters "$3" \
     --threads "$5" --ckpt-every 250 --val-every 0 --quiet --max-minutes "$4" --input-normals normals16 \
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
-candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18 or v19): CAND_RUN its run, CAND_BASE the run its
+candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19 or v20): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME)
   case "${1##*-}" in
@@ -237,6 +246,8 @@ candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18 or 
          CAND_PREV=${TWELFTH:-daf5cee} CAND_PREV_NAME=twelfth ;;
     v19) CAND_RUN=$RUNS19/${V19_RUN:-g19} CAND_BASE=$RUNS18/v18_more CAND_OUT=$OUT19 CAND_NAME=v19 \
          CAND_PREV=${THIRTEENTH:-652c7ea} CAND_PREV_NAME=thirteenth ;;
+    v20) CAND_RUN=$RUNS20/${V20_RUN:-v20_data} CAND_BASE=$RUNS19/g19 CAND_OUT=$OUT20 CAND_NAME=v20 \
+         CAND_PREV=${FOURTEENTH:-59e0ed8} CAND_PREV_NAME=fourteenth ;;
     *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
   esac
 }
@@ -1177,24 +1188,24 @@ EOF
       SHIP_OUT=$OUT14/final
       for s in eval-v14 eval-strong-v14 eval-side-v14 eval-gt-v14 export-v14 cost-v14 tradeoff-v14 compare-v14 ship-v14 \
                refine-v14 gallery-v14 docs-v2; do step "$s"; done ;;
-    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18|eval-v19|eval-strong-v19|eval-side-v19|eval-gt-v19)  # a shipped
+    eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18|eval-v19|eval-strong-v19|eval-side-v19|eval-gt-v19|eval-v20|eval-strong-v20|eval-side-v20|eval-gt-v20)  # a shipped
       # candidate (candidate: the eleventh, v15_control, against the tenth; the twelfth, v17_aligned, against the
       # eleventh), plain and +mirror, test split (after the choice on the validation split)
       candidate "$1"; eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
       eval_against test "$CAND_OUT/final/$EVAL_NAME" "$CAND_RUN" "$CAND_BASE" ;;
-    export-v15|export-v17|export-v18|export-v19)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
+    export-v15|export-v17|export-v18|export-v19|export-v20)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
       # generator file
       candidate "$1"
       export_pair "$CAND_RUN" "$CAND_OUT/final" "$OUT8/models_fifth/generator.onnx"
       rm -rf "$CAND_OUT/final/models_fp16"
       sketchmesh export "$CAND_RUN" -o "$CAND_OUT/final/models_fp16" --quantize fp16
       cp "$OUT8/models_fifth/generator.onnx" "$CAND_OUT/final/models_fp16/" ;;
-    cost-v15|cost-v17|cost-v18|cost-v19)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
+    cost-v15|cost-v17|cost-v18|cost-v19|cost-v20)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
       # predictor weights; the variant "fp32" is the models as given) (run it alone: it times)
       candidate "$1"; mkdir -p "$CAND_OUT"
       sketchmesh bench engine --models "$CAND_OUT/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
         --json "$CAND_OUT/engine_$CAND_NAME.json" ;;
-    tradeoff-v15|tradeoff-v17|tradeoff-v18|tradeoff-v19)  # error against run time: the candidate at each precision, plain and +mirror, and template
+    tradeoff-v15|tradeoff-v17|tradeoff-v18|tradeoff-v19|tradeoff-v20)  # error against run time: the candidate at each precision, plain and +mirror, and template
       # level; NAME-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3
       # marked as what the app runs (run it alone: it times)
       candidate "$1"
@@ -1203,26 +1214,26 @@ EOF
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
         --bundled "$CAND_NAME-fp16w:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
         --out "$CAND_OUT/final/tradeoff" ;;
-    compare-v15|compare-v17|compare-v18|compare-v19)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
+    compare-v15|compare-v17|compare-v18|compare-v19|compare-v20)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
       # (float16-stored predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
       candidate "$1"
       models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
       sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
         --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$CAND_OUT/final/compare" ;;
-    ship-v15|ship-v17|ship-v18|ship-v19)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
+    ship-v15|ship-v17|ship-v18|ship-v19|ship-v20)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
       # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
       candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
-    refine-v15|refine-v17|refine-v18|refine-v19)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
+    refine-v15|refine-v17|refine-v18|refine-v19|refine-v20)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$CAND_OUT/final/refine" ;;
-    repair-v15|repair-v17|repair-v18|repair-v19)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
+    repair-v15|repair-v17|repair-v18|repair-v19|repair-v20)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
       # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
         --out "$CAND_OUT/final/repair/off"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
         --out "$CAND_OUT/final/repair/on" ;;
-    gallery-v15|gallery-v17|gallery-v18|gallery-v19)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
+    gallery-v15|gallery-v17|gallery-v18|gallery-v19|gallery-v20)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
       # as it exports (folds repaired)
       candidate "$1"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$CAND_OUT/final/gallery.png"
@@ -1230,7 +1241,7 @@ EOF
         -o "$CAND_OUT/final/gallery_side.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
         -o "$CAND_OUT/final/gallery_repair.png" ;;
-    all-v15|all-v17|all-v18|all-v19)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
+    all-v15|all-v17|all-v18|all-v19|all-v20)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
       # shipped
       candidate "$1"; SHIP_OUT=$CAND_OUT/final
       local v=${1##*-}
@@ -1366,6 +1377,34 @@ EOF
       eval_against val "$OUT19/val_${EVAL_NAME#eval_}" "$RUNS19/g19" "$RUNS18/v18_more" ;;
     logs-v19)  # the GPU stage's training log beside the thirteenth's, and predictor-v19's runs (when they have run)
       log_summary "$RUNS19" g19 v19_b32 v19_b128; log_summary "$RUNS18" v18_more ;;
+    overfit-v20)  # does the fourteenth predictor (RUNS19/g19) generalise or fit worse? Its score on the train split's
+      # shapes beside the validation split's (val-v19b), plain, the same measure and sample count
+      eval_against train "$OUT20/overfit" "$RUNS19/g19" ;;
+    data-v20)  # DATA2's 1,300 shapes and 1,300 more (200 per category, the same views): a shape is a function of its
+      # (category, index) and its split a hash of them, so DATA2's shape files are linked in, not rendered again,
+      # and DATA2's validation and test shapes stay out of training; 21 min on 2 cores
+      if [ ! -d "$DATA20/shapes" ] && [ -d "$DATA2/shapes" ]; then mkdir -p "$DATA20" && cp -al "$DATA2/shapes" "$DATA20/"; fi
+      sketchmesh data --source procedural --shapes-per-category 200 --views 12 --elevations 0 15 30 45 \
+        --workers 2 --out "$DATA20" ;;
+    generated-v20)  # generated-v8 on DATA20's train split (the same generator), 27 min
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data generated "$DATA20" --models "$OUT8/models_fifth" --name normals16 --workers 2 ;;
+    generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 27 min
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data generated "$DATA20" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    predictor-v20)  # the fourteenth predictor (RUNS19/g19) trained on DATA20 by predictor-v19's batch-32 recipe (train7,
+      # aligned branch, mirror-consistency term, peak 1e-4 over V20_ITERS [1900]): v19_b32 saw the same samples of DATA2
+      # from the same start, so the two differ in their shapes only; V20_MINUTES [45] at most, V20_THREADS [2]; resumes
+      [ -f "$RUNS19/g19/config.json" ] || { echo "predictor-v20 starts from $RUNS19/g19: run the GPU stage and fetch-gpu-v19 first" >&2; exit 1; }
+      [ -f "$DATA20/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v20 reads $DATA20: run data-v20 generated-v20 generated-mirror-v20 first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
+        train7 "$RUNS19/g19" "$RUNS20/v20_data" "${V20_ITERS:-1900}" "${V20_MINUTES:-45}" "${V20_THREADS:-2}" ;;
+    val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
+      # their start (g19), plain and +mirror, on DATA2's validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT20/val_${EVAL_NAME#eval_}" "$RUNS20/v20_data" "$RUNS19/v19_b32" "$RUNS19/g19" ;;
+    logs-v20)  # predictor-v20's training log beside its control's
+      log_summary "$RUNS20" v20_data; log_summary "$RUNS19" v19_b32 ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
       log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
@@ -1406,7 +1445,7 @@ EOF
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
       play_sessions "$OUT13/session" ;;
-    session-v15|session-v17|session-v18|session-v19)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
+    session-v15|session-v17|session-v18|session-v19|session-v20)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
       # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
       # it times)
       candidate "$1"; play_sessions "$CAND_OUT/session" ;;
