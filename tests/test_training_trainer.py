@@ -192,6 +192,39 @@ def test_retrieval_finds_the_query_itself_when_it_is_in_the_train_split(data_dir
     assert centres["methods"]["retrieval"]["mean"]["voxel_iou"] == pytest.approx(1.0)
 
 
+def test_retrieval_data_searches_another_datasets_train_split(data_dir, tmp_path):
+    """A run trained on a larger dataset is set against retrieval from that dataset (``--retrieval-data``): with a copy
+    of the data whose every shape is in its train split, retrieval finds each test query itself (voxel IoU 1), which
+    the data's own train split cannot (its test shapes are not in it)."""
+    import shutil
+
+    from training.cli.train import main as cli
+    from training.evaluation.evaluate import evaluate
+    from training.loop.trainer import Trainer
+
+    everything = tmp_path / "everything_train"
+    shutil.copytree(data_dir, everything, ignore=shutil.ignore_patterns(".cache", "eval"))
+    manifest = json.loads((everything / "manifest.json").read_text())
+    for rec in manifest["shapes"] + manifest["views"]:
+        rec["split"] = "train"
+    (everything / "manifest.json").write_text(json.dumps(manifest))
+    run = tmp_path / "run"
+    Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(run), iters=1, **TINY), progress=False).run()
+    own = evaluate(run, data_dir, "test", gt_normals=True, max_samples=3, progress=False)
+    wider = evaluate(run, data_dir, "test", gt_normals=True, max_samples=3, progress=False, retrieval_data=everything)
+    assert own["methods"]["retrieval"]["mean"]["voxel_iou"] < 0.99
+    assert wider["methods"]["retrieval"]["mean"]["voxel_iou"] == pytest.approx(1.0)
+    assert wider["retrieval_data"] == str(everything) and own["retrieval_data"] == str(data_dir)
+    # the run's own rows do not depend on where retrieval searches
+    assert wider["mean"]["voxel_iou"] == pytest.approx(own["mean"]["voxel_iou"], abs=1e-9)
+    out = tmp_path / "eval_out"
+    assert cli(["eval", str(run), "--data", str(data_dir), "--gt-normals", "--max-samples", "3", "--quiet",
+                "--retrieval-data", str(everything), "--out", str(out)]) == 0
+    assert f"retrieval from the train split of {everything}" in (out / "eval_test.md").read_text()
+    assert cli(["eval", str(run), "--data", str(data_dir), "--quiet", "--retrieval-data", str(tmp_path / "absent"),
+                "--out", str(out)]) != 0
+
+
 def test_view_frame_rendering_reproduces_the_dataset_targets(data_dir):
     """The mesh loss's plumbing: the ground-truth mesh moved to the input view frame and rendered with
     view_frame_cameras matches the dataset's normal images and silhouettes of the input view and the

@@ -219,7 +219,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 _RUN_ONLY_EVAL_FLAGS = (("gt_normals", "--gt-normals"), ("generator_run", "--generator-run"),
                         ("baseline_run", "--baseline-run"))
-_MODELS_ONLY_EVAL_FLAGS = (("views", "--views"), ("retrieval_data", "--retrieval-data"))
+_MODELS_ONLY_EVAL_FLAGS = (("views", "--views"),)
 
 
 def _eval_models_specs(args: argparse.Namespace) -> list[str]:
@@ -349,7 +349,8 @@ def register(commands, bench) -> None:
     p.add_argument("--views", type=int_in(0, 10**6), default=None, metavar="N",
                    help="--models: line drawings per mesh, evenly spaced over its views (default 4; 0: all)")
     p.add_argument("--retrieval-data", metavar="DIR",
-                   help="--models: dataset whose train split the retrieval floor searches (default --data)")
+                   help="dataset whose train split the retrieval floor searches (default --data; e.g. the "
+                        "larger dataset a run was trained on)")
     p.add_argument("--json", metavar="PATH", help="write the results as JSON here")
     p.add_argument("--out", metavar="DIR",
                    help="folder for the markdown table, JSON and figure (default RUN/eval, or DATA/eval with --models)")

@@ -230,6 +230,7 @@ def evaluate(
     train_set=None,
     elevation: float | None = None,
     mirror: bool = False,
+    retrieval_data: str | Path | None = None,
 ) -> dict:
     """Evaluate a run (and baselines) on a split; see the module docstring.
 
@@ -250,6 +251,8 @@ def evaluate(
         test_set, train_set: datasets to use instead of reading ``data_dir`` (tests).
         elevation: only the samples rendered at this elevation in degrees (None: all).
         mirror: also score every run as ``NAME +mirror`` (module doc).
+        retrieval_data: dataset whose train split the retrieval baseline searches (default
+            ``data_dir``): a run trained on a larger dataset is set against retrieval from the shapes it saw.
 
     Returns:
         ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
@@ -294,8 +297,8 @@ def evaluate(
     if retrieval:
         if train_set is None:
             # only the 64x64 normal images and cameras, from the dataset's array cache (not every shape file)
-            train_set = make_dataset(data_cfg.replace(augment_strength=0.0, extra_views=0, mirror=0.0, mirror_consistency=0.0,
-                                                     mirror_inputs=""),
+            train_set = make_dataset(data_cfg.replace(data_dir=str(retrieval_data or data_dir), augment_strength=0.0,
+                                                     extra_views=0, mirror=0.0, mirror_consistency=0.0, mirror_inputs=""),
                                      "train", fields="mesh")
         methods.append(_RetrievalMethod(train_set, methods[0], progress))
 
@@ -372,6 +375,7 @@ def evaluate(
         "mirror_average": bool(mirror),
         "voxel_resolution": int(voxel_resolution),
         "voxel_surface": bool(voxel_surface),
+        "retrieval_data": str(retrieval_data or data_dir) if retrieval else None,
         "seconds": time.perf_counter() - t_start,
     }
 
@@ -389,6 +393,8 @@ def markdown_table(result: dict) -> str:
         what.append(f"sketches augmented at strength {result['augment_strength']:g}")
     if not result.get("voxel_surface", True):
         what.append("voxels by cell centres only")
+    if result.get("retrieval_data") and "retrieval" in names:
+        what.append(f"retrieval from the train split of {result['retrieval_data']}")
     lines = [f"Voxel IoU ({result['voxel_resolution']}^3) / Chamfer-L1 on the {result['split']} split, "
              + ", ".join(what), "",
              "| category | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
@@ -471,6 +477,8 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         for run in runs:
             check_run_folder(run, flag)
     check_dataset(args.data, args.split, what="--data")
+    if args.retrieval_data and not args.no_retrieval:
+        check_dataset(args.retrieval_data, "train", what="--retrieval-data")
     out = Path(args.out) if args.out else Path(args.run) / "eval"
     check_output_dir(out, "--out")
     if args.json:
@@ -480,6 +488,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
         elevation=args.elevation, voxel_surface=not args.voxel_centres, mirror=args.mirror_average,
+        retrieval_data=args.retrieval_data,
     )
     table = markdown_table(result)
     print(table)
