@@ -236,7 +236,8 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
 
 candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19 or v20): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
-  # bundled pair compare-* sets beside it (as CAND_PREV_NAME)
+  # bundled pair compare-* sets beside it (as CAND_PREV_NAME), CAND_RETRIEVAL the dataset whose train split it saw
+  # (where compare-* searches for retrieval; DATA2 unless set)
   case "${1##*-}" in
     v15) CAND_RUN=$RUNS14/v15_control CAND_BASE=$RUNS14/v14_big_mc CAND_OUT=$OUT15 CAND_NAME=v15 CAND_PREV=074b7ab \
          CAND_PREV_NAME=tenth ;;
@@ -247,7 +248,7 @@ candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v1
     v19) CAND_RUN=$RUNS19/${V19_RUN:-g19} CAND_BASE=$RUNS18/v18_more CAND_OUT=$OUT19 CAND_NAME=v19 \
          CAND_PREV=${THIRTEENTH:-652c7ea} CAND_PREV_NAME=thirteenth ;;
     v20) CAND_RUN=$RUNS20/${V20_RUN:-v20_data} CAND_BASE=$RUNS19/g19 CAND_OUT=$OUT20 CAND_NAME=v20 \
-         CAND_PREV=${FOURTEENTH:-59e0ed8} CAND_PREV_NAME=fourteenth ;;
+         CAND_PREV=${FOURTEENTH:-59e0ed8} CAND_PREV_NAME=fourteenth CAND_RETRIEVAL=$DATA20 ;;
     *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
   esac
 }
@@ -1219,7 +1220,8 @@ EOF
       candidate "$1"
       models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
       sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
-        --data "$DATA2" --views 4 --max-samples 39 --threads 2 --out "$CAND_OUT/final/compare" ;;
+        --data "$DATA2" --retrieval-data "${CAND_RETRIEVAL:-$DATA2}" --views 4 --max-samples 39 --threads 2 \
+        --out "$CAND_OUT/final/compare" ;;
     ship-v15|ship-v17|ship-v18|ship-v19|ship-v20)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
       # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
       candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
@@ -1403,6 +1405,12 @@ EOF
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT20/val_${EVAL_NAME#eval_}" "$RUNS20/v20_data" "$RUNS19/v19_b32" "$RUNS19/g19" ;;
+    retrieval-v20|retrieval-strong-v20|retrieval-side-v20)  # the retrieval floor on the same data as the candidate: the
+      # nearest of DATA20's train views (the shapes it saw) to each test query, the same samples as eval-*-v20
+      candidate "$1"; eval_case "${1/retrieval-/eval-}"
+      sketchmesh eval "$CAND_RUN" --data "$DATA2" --split test --generator-run "$RUNS8/fifth/generator" \
+        --retrieval-data "$CAND_RETRIEVAL" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 \
+        --out "$CAND_OUT/final/retrieval_${EVAL_NAME#eval_}" ;;
     logs-v20)  # predictor-v20's training log beside its control's
       log_summary "$RUNS20" v20_data; log_summary "$RUNS19" v19_b32 ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
