@@ -89,6 +89,12 @@
 # Since then the generated sets run the generator in torch on the GPU (`data generated --torch-device cuda`; the
 # workers only draw the sketches), so a first call should leave most of its ten minutes to training (not yet run
 # on a GPU; on the CPU its rows equal ONNX Runtime's within float16, tests/test_generated_inputs.py).
+# The fifteenth pair's predictor was trained on twice the shapes on the CPU (reproduce_models.sh data-v20 predictor-v20:
+# 200 per category, ahead of its equal-sample control on the validation split in every case), so a lent GPU should
+# train on them too: SHAPES=200 builds them there (twice the 1,300 shapes' rendering and generated views, so the
+# first call mostly builds and a second call on the warm machine trains), from the bundled fifteenth pair:
+#   SHAPES=200 INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-aligned 128" \
+#     EXTRA="--mirror-consistency 50" SPECS="g21 512 3e-4" GEN_MODELS=assets/models bash training/gpu_predictor.sh assets/models
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}

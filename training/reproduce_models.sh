@@ -90,7 +90,9 @@
 #   (train split 0.630, val 0.563: overfit-v20), so twice the shapes: DATA20 [data/proc200e4], 200 per category, the
 #   first 100 those of DATA2 (data-v20; the generator's images of its train split: generated-v20, generated-mirror-v20),
 #   the fourteenth predictor trained on it by predictor-v19's batch-32 recipe (predictor-v20, against v19_b32: the same
-#   start, schedule and samples on DATA2), set against both on DATA2's validation split (val-*-v20, logs-v20).
+#   start, schedule and samples on DATA2), set against both on DATA2's validation split (val-*-v20, logs-v20); all-v20
+#   measures, exports, times and ships it like all-v19 (into OUT20/final), retrieval-*-v20 the retrieval floor from
+#   DATA20's train split on the same test samples, session-v20 the app under the pen.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1411,6 +1413,18 @@ EOF
       sketchmesh eval "$CAND_RUN" --data "$DATA2" --split test --generator-run "$RUNS8/fifth/generator" \
         --retrieval-data "$CAND_RETRIEVAL" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 \
         --out "$CAND_OUT/final/retrieval_${EVAL_NAME#eval_}" ;;
+    cost-both-v20)  # the fourteenth pair's files (compare-v20 takes them from git) and the fifteenth's as shipped, the app's
+      # engine with mirror averaging, timed in turn twice each (A B A B) in one window: the machine's speed drifts
+      # between windows, and the two predictors are the same network (run it alone: it times)
+      candidate "$1"
+      [ -f "$CAND_OUT/models_$CAND_PREV_NAME/mesh_predictor.onnx" ] || models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
+      mkdir -p "$CAND_OUT/same_window"
+      for k in 1 2; do
+        for m in "$CAND_PREV_NAME:$CAND_OUT/models_$CAND_PREV_NAME" "$CAND_NAME:$CAND_OUT/final/models_fp16"; do
+          sketchmesh bench engine --models "${m#*:}" --threads 2 --variants fp32,fp32+mirror --runs 50 \
+            --json "$CAND_OUT/same_window/engine_${m%%:*}_$k.json"
+        done
+      done ;;
     logs-v20)  # predictor-v20's training log beside its control's
       log_summary "$RUNS20" v20_data; log_summary "$RUNS19" v19_b32 ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
