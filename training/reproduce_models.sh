@@ -1403,6 +1403,15 @@ EOF
       [ -f "$DATA20/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v20 reads $DATA20: run data-v20 generated-v20 generated-mirror-v20 first" >&2; exit 1; }
       PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
         train7 "$RUNS19/g19" "$RUNS20/v20_data" "${V20_ITERS:-1900}" "${V20_MINUTES:-45}" "${V20_THREADS:-2}" ;;
+    predictor-v20-more)  # the fifteenth predictor (RUNS20/v20_data) trained on along a new cosine on DATA20 by the same recipe
+      # (peak 1e-4 over V20_MORE_ITERS [5000], V20_MORE_MINUTES [60] at most, two threads; resumes): do more passes over
+      # the 2,087 shapes keep helping? Set against v20_data by val-v20-more
+      [ -f "$RUNS20/v20_data/config.json" ] || { echo "predictor-v20-more starts from $RUNS20/v20_data: run predictor-v20 first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
+        train7 "$RUNS20/v20_data" "$RUNS20/v20_more" "${V20_MORE_ITERS:-5000}" "${V20_MORE_MINUTES:-60}" 2 ;;
+    val-v20-more|val-strong-v20-more|val-side-v20-more)  # predictor-v20-more's run against its start, +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT20/val_more_${EVAL_NAME#eval_}" "$RUNS20/v20_more" "$RUNS20/v20_data" ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
