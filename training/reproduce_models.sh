@@ -1390,12 +1390,10 @@ EOF
       if [ ! -d "$DATA20/shapes" ] && [ -d "$DATA2/shapes" ]; then mkdir -p "$DATA20" && cp -al "$DATA2/shapes" "$DATA20/"; fi
       sketchmesh data --source procedural --shapes-per-category 200 --views 12 --elevations 0 15 30 45 \
         --workers 2 --out "$DATA20" ;;
-    generated-v20)  # generated-v8 on DATA20's train split (the same generator), 27 min
-      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      sketchmesh data generated "$DATA20" --models "$OUT8/models_fifth" --name normals16 --workers 2 ;;
-    generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 27 min
-      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      sketchmesh data generated "$DATA20" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    generated-v20)  # generated-v8 on DATA20's train split (the same generator), 28 min
+      DATA2=$DATA20 step generated-v8 ;;
+    generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 28 min
+      DATA2=$DATA20 step generated-mirror-v9 ;;
     predictor-v20)  # the fourteenth predictor (RUNS19/g19) trained on DATA20 by predictor-v19's batch-32 recipe (train7,
       # aligned branch, mirror-consistency term, peak 1e-4 over V20_ITERS [1900]): v19_b32 saw the same samples of DATA2
       # from the same start, so the two differ in their shapes only; V20_MINUTES [45] at most, V20_THREADS [2]; resumes
