@@ -94,9 +94,10 @@
 #   measures, exports, times and ships it like all-v19 (into OUT20/final), retrieval-*-v20 the retrieval floor from
 #   DATA20's train split on the same test samples, session-v20 the app under the pen.
 # The sixteenth candidate (into OUT21 [out/v21]): the fifteenth predictor trained on along a new cosine on DATA20
-#   (predictor-v20-more, into RUNS20/v20_more), set against it on the validation split (val-*-v20-more); all-v21
+#   (predictor-v20-more, into RUNS20/v20_more), set against it on the validation split (val-*-v20-more, logs-v21); all-v21
 #   measures, exports, times and ships it like all-v20 (into OUT21/final; its retrieval floor is retrieval-*-v20's,
 #   the same shapes and samples), cost-both-v21 times it beside the fifteenth's files, session-v21 the app under the pen.
+#   predictor-v21-more trains it on by the same recipe (into RUNS20/v21_more), val-*-v21-more sets that against it.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1417,6 +1418,15 @@ EOF
     val-v20-more|val-strong-v20-more|val-side-v20-more)  # predictor-v20-more's run against its start, +mirror, validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT20/val_more_${EVAL_NAME#eval_}" "$RUNS20/v20_more" "$RUNS20/v20_data" ;;
+    predictor-v21-more)  # the sixteenth predictor (RUNS20/v20_more) trained on along another cosine on DATA20 by the same
+      # recipe (peak 1e-4 over V21_MORE_ITERS [5000], V21_MORE_MINUTES [60] at most, two threads; resumes): does a third
+      # pass of 5,000 iterations over the 2,087 shapes still help? Set against v20_more by val-v21-more
+      [ -f "$RUNS20/v20_more/config.json" ] || { echo "predictor-v21-more starts from $RUNS20/v20_more: run predictor-v20-more first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
+        train7 "$RUNS20/v20_more" "$RUNS20/v21_more" "${V21_MORE_ITERS:-5000}" "${V21_MORE_MINUTES:-60}" 2 ;;
+    val-v21-more|val-strong-v21-more|val-side-v21-more)  # predictor-v21-more's run against its start, +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT21/val_more_${EVAL_NAME#eval_}" "$RUNS20/v21_more" "$RUNS20/v20_more" ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
@@ -1441,6 +1451,8 @@ EOF
       done ;;
     logs-v20)  # predictor-v20's training log beside its control's
       log_summary "$RUNS20" v20_data; log_summary "$RUNS19" v19_b32 ;;
+    logs-v21)  # predictor-v20-more's training log beside its start's
+      log_summary "$RUNS20" v20_more v20_data ;;
     logs-v17)  # predictor-v17's run beside the aligned trial's control and the equal-cost control (when it has run)
       log_summary "$RUNS16" v17_aligned v16_control2 v17_control ;;
     val-v17|val-strong-v17|val-side-v17)  # v17_aligned against the bundled eleventh (v15_control) and the aligned trial's
