@@ -242,6 +242,12 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
+recipe20() {  # predictor-v19's batch-32 recipe on DATA20 (the larger predictor with the aligned branch, mirror-consistency 50,
+  # peak 1e-4 cosine): train7 from run $1 into run $2, $3 iterations, $4 minutes at most, $5 threads
+  PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
+    train7 "$@"
+}
+
 candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19, v20 or v21): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME), CAND_RETRIEVAL the dataset whose train split it saw
@@ -1407,26 +1413,23 @@ EOF
       # from the same start, so the two differ in their shapes only; V20_MINUTES [45] at most, V20_THREADS [2]; resumes
       [ -f "$RUNS19/g19/config.json" ] || { echo "predictor-v20 starts from $RUNS19/g19: run the GPU stage and fetch-gpu-v19 first" >&2; exit 1; }
       [ -f "$DATA20/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v20 reads $DATA20: run data-v20 generated-v20 generated-mirror-v20 first" >&2; exit 1; }
-      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
-        train7 "$RUNS19/g19" "$RUNS20/v20_data" "${V20_ITERS:-1900}" "${V20_MINUTES:-45}" "${V20_THREADS:-2}" ;;
-    predictor-v20-more)  # the fifteenth predictor (RUNS20/v20_data) trained on along a new cosine on DATA20 by the same recipe
-      # (peak 1e-4 over V20_MORE_ITERS [5000], V20_MORE_MINUTES [60] at most, two threads; resumes): do more passes over
-      # the 2,087 shapes keep helping? Set against v20_data by val-v20-more
-      [ -f "$RUNS20/v20_data/config.json" ] || { echo "predictor-v20-more starts from $RUNS20/v20_data: run predictor-v20 first" >&2; exit 1; }
-      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
-        train7 "$RUNS20/v20_data" "$RUNS20/v20_more" "${V20_MORE_ITERS:-5000}" "${V20_MORE_MINUTES:-60}" 2 ;;
-    val-v20-more|val-strong-v20-more|val-side-v20-more)  # predictor-v20-more's run against its start, +mirror, validation split
-      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$OUT20/val_more_${EVAL_NAME#eval_}" "$RUNS20/v20_more" "$RUNS20/v20_data" ;;
-    predictor-v21-more)  # the sixteenth predictor (RUNS20/v20_more) trained on along another cosine on DATA20 by the same
-      # recipe (peak 1e-4 over V21_MORE_ITERS [5000], V21_MORE_MINUTES [60] at most, two threads; resumes): does a third
-      # pass of 5,000 iterations over the 2,087 shapes still help? Set against v20_more by val-v21-more
-      [ -f "$RUNS20/v20_more/config.json" ] || { echo "predictor-v21-more starts from $RUNS20/v20_more: run predictor-v20-more first" >&2; exit 1; }
-      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
-        train7 "$RUNS20/v20_more" "$RUNS20/v21_more" "${V21_MORE_ITERS:-5000}" "${V21_MORE_MINUTES:-60}" 2 ;;
-    val-v21-more|val-strong-v21-more|val-side-v21-more)  # predictor-v21-more's run against its start, +mirror, validation split
-      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$OUT21/val_more_${EVAL_NAME#eval_}" "$RUNS20/v21_more" "$RUNS20/v20_more" ;;
+      recipe20 "$RUNS19/g19" "$RUNS20/v20_data" "${V20_ITERS:-1900}" "${V20_MINUTES:-45}" "${V20_THREADS:-2}" ;;
+    predictor-v20-more|predictor-v21-more)  # the fifteenth predictor (RUNS20/v20_data) trained on along a new cosine on
+      # DATA20 by the same recipe into RUNS20/v20_more (the sixteenth), and the sixteenth so again into RUNS20/v21_more
+      # (5,000 iterations [V20_MORE_ITERS, V21_MORE_ITERS], 60 minutes at most [V20_MORE_MINUTES, V21_MORE_MINUTES], two
+      # threads; resumes): do more passes over the 2,087 shapes keep helping? Set against their start by val-*-v2X-more
+      local from=v20_data to=v20_more iters=${V20_MORE_ITERS:-5000} minutes=${V20_MORE_MINUTES:-60}
+      [ "$1" = predictor-v21-more ] && from=v20_more to=v21_more iters=${V21_MORE_ITERS:-5000} minutes=${V21_MORE_MINUTES:-60}
+      [ -f "$RUNS20/$from/config.json" ] || { echo "$1 starts from $RUNS20/$from: train it first" >&2; exit 1; }
+      recipe20 "$RUNS20/$from" "$RUNS20/$to" "$iters" "$minutes" 2 ;;
+    val-v20-more|val-strong-v20-more|val-side-v20-more|val-v21-more|val-strong-v21-more|val-side-v21-more)  # a
+      # predictor-v2X-more run against its start, +mirror, validation split
+      local c=${1%-more}; eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      if [ "${1##*-v}" = 20-more ]; then
+        eval_against val "$OUT20/val_more_${EVAL_NAME#eval_}" "$RUNS20/v20_more" "$RUNS20/v20_data"
+      else
+        eval_against val "$OUT21/val_more_${EVAL_NAME#eval_}" "$RUNS20/v21_more" "$RUNS20/v20_more"
+      fi ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
