@@ -94,7 +94,7 @@
 #   measures, exports, times and ships it like all-v19 (into OUT20/final), retrieval-*-v20 the retrieval floor from
 #   DATA20's train split on the same test samples, session-v20 the app under the pen.
 # The sixteenth candidate (into OUT21 [out/v21]): the fifteenth predictor trained on along a new cosine on DATA20
-#   (predictor-v20-more, into RUNS20/v20_more), set against it on the validation split (val-*-v20-more, logs-v21); all-v21
+#   (predictor-v20-more, into RUNS20/v20_more), set against it on the validation split (val-*-v20-more, logs-v21, overfit-v21); all-v21
 #   measures, exports, times and ships it like all-v20 (into OUT21/final; its retrieval floor is retrieval-*-v20's,
 #   the same shapes and samples), cost-both-v21 times it beside the fifteenth's files, session-v21 the app under the pen.
 #   predictor-v21-more trains it on by the same recipe (into RUNS20/v21_more), val-*-v21-more sets that against it.
@@ -1398,6 +1398,10 @@ EOF
     overfit-v20)  # does the fourteenth predictor (RUNS19/g19) generalise or fit worse? Its score on the train split's
       # shapes beside the validation split's (val-v19b), plain, the same measure and sample count
       eval_against train "$OUT20/overfit" "$RUNS19/g19" ;;
+    overfit-v21)  # the same for the fifteenth and sixteenth predictors (RUNS20/v20_data, v20_more): did 5,000 more iterations on
+      # DATA20 widen the gap between training shapes (DATA2's train split, all of them in DATA20's) and validation shapes
+      # (val-*-v20-more)?
+      eval_against train "$OUT21/overfit" "$RUNS20/v20_more" "$RUNS20/v20_data" ;;
     data-v20)  # DATA2's 1,300 shapes and 1,300 more (200 per category, the same views): a shape is a function of its
       # (category, index) and its split a hash of them, so DATA2's shape files are linked in, not rendered again,
       # and DATA2's validation and test shapes stay out of training; 21 min on 2 cores
