@@ -1428,12 +1428,10 @@ EOF
       recipe20 "$RUNS20/$from" "$RUNS20/$to" "$iters" "$minutes" 2 ;;
     val-v20-more|val-strong-v20-more|val-side-v20-more|val-v21-more|val-strong-v21-more|val-side-v21-more)  # a
       # predictor-v2X-more run against its start, +mirror, validation split
-      local c=${1%-more}; eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      if [ "${1##*-v}" = 20-more ]; then
-        eval_against val "$OUT20/val_more_${EVAL_NAME#eval_}" "$RUNS20/v20_more" "$RUNS20/v20_data"
-      else
-        eval_against val "$OUT21/val_more_${EVAL_NAME#eval_}" "$RUNS20/v21_more" "$RUNS20/v20_more"
-      fi ;;
+      local c=${1%-more} out=$OUT20 run=v20_more base=v20_data
+      [ "${1##*-v}" = 21-more ] && out=$OUT21 run=v21_more base=v20_more
+      eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$out/val_more_${EVAL_NAME#eval_}" "$RUNS20/$run" "$RUNS20/$base" ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
