@@ -95,6 +95,16 @@
 # first call mostly builds and a second call on the warm machine trains), from the bundled fifteenth pair:
 #   SHAPES=200 INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-aligned 128" \
 #     EXTRA="--mirror-consistency 50" SPECS="g21 512 3e-4" GEN_MODELS=assets/models bash training/gpu_predictor.sh assets/models
+# The seventeenth candidate's GPU stage (2026-11-27, H100, two calls on one warm machine, 14 minutes of device time held),
+# from the bundled sixteenth pair (nothing carried but .whl): DATA20's shapes at half the views,
+#   SHAPES=200 VIEWS=8 ELEVATIONS="0 20 40" INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 \
+#     --predictor-aligned 128" EXTRA="--mirror-consistency 50" SPECS="g22 512 3e-4" END=565 GEN_MODELS=assets/models \
+#     bash training/gpu_predictor.sh assets/models
+#     (only built: 2,600 shapes at 24 views in 263 s, split md5 31f869fe... as DATA20's; the generator on the GPU made
+#     each generated set of 50,088 views in 91 s, a quarter of ONNX Runtime's time on the 16 cores; no time left to train)
+#   the same with CAL=0 ITERS=900 WARMUP=20 END=255
+#     (900 iterations at batch 512 in 200 s, 4.5 it/s: 461,000 samples, about three of the CPU's 5,000-iteration
+#     passes at batch 32; reproduce_models.sh fetch-gpu-v22, val-*-v22-gpu)
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
@@ -114,6 +124,11 @@ GEN_MODELS=${GEN_MODELS:-gpucarry/models_fifth}
 RUNS=${RUNS:-runs/gpu10}
 DEVICE=${DEVICE:-cuda}
 SHAPES=${SHAPES:-100}
+# VIEWS azimuths at each of ELEVATIONS [12; 0 15 30 45: the 48 views of the CPU data]. Fewer views per shape build
+# faster on the lent machine: SHAPES=200 VIEWS=8 ELEVATIONS="0 20 40" renders the 2,087 training shapes of the CPU's
+# DATA20 at 24 views each, half the views of the 48, so the data and both generated sets fit in one call beside training
+VIEWS=${VIEWS:-12}
+ELEVATIONS=${ELEVATIONS:-"0 15 30 45"}
 CAL=${CAL:-60}
 END=${END:-555}
 SPECS=${SPECS:-"g10_b512 512 8e-4"}
@@ -153,7 +168,8 @@ echo "== data $(elapsed) s"
 if [ -f "$DATA/manifest.json" ] && [ -f "$DATA/.cache/mesh_arrays.bin" ]; then
   echo "$DATA: already built"
 else
-  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views 12 --elevations 0 15 30 45 "${SIZE[@]}" \
+  # shellcheck disable=SC2086
+  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views "$VIEWS" --elevations $ELEVATIONS "${SIZE[@]}" \
     --workers "$(nproc)" --no-progress --out "$DATA" || exit 1
   python3 -c "
 import hashlib, json

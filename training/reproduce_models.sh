@@ -98,6 +98,10 @@
 #   measures, exports, times and ships it like all-v20 (into OUT21/final; its retrieval floor is retrieval-*-v20's,
 #   the same shapes and samples), cost-both-v21 times it beside the fifteenth's files, session-v21 the app under the pen.
 #   predictor-v21-more trains it on by the same recipe (into RUNS20/v21_more), val-*-v21-more sets that against it.
+# The seventeenth candidate's GPU stage (into RUNS22 [runs/v22] and OUT22 [out/v22]): the sixteenth predictor as bundled
+#   (imported from assets/models there) trained at batch 512 on a lent H100 on DATA20's 2,087 training shapes at 24 views
+#   each (training/gpu_predictor.sh SHAPES=200 VIEWS=8 ELEVATIONS="0 20 40", in its header), brought back by
+#   fetch-gpu-v22 (RUNS22/g22) and set against the sixteenth on the validation split (val-*-v22-gpu).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -168,6 +172,8 @@ RUNS20=${RUNS20:-runs/v20}
 OUT20=${OUT20:-out/v20}
 DATA20=${DATA20:-data/proc200e4}
 OUT21=${OUT21:-out/v21}
+RUNS22=${RUNS22:-runs/v22}
+OUT22=${OUT22:-out/v22}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1376,6 +1382,12 @@ EOF
       gpucarry "$RUNS18/v18_more" ;;
     fetch-gpu-v19)  # what gpu_predictor.sh brought back for the fourteenth (GPU_FILES) -> RUNS19/NAME
       RUNS2=$RUNS19 step fetch-gpu ;;
+    fetch-gpu-v22)  # what gpu_predictor.sh brought back for the seventeenth candidate (GPU_FILES) -> RUNS22/NAME
+      RUNS2=$RUNS22 step fetch-gpu ;;
+    val-v22-gpu|val-strong-v22-gpu|val-side-v22-gpu)  # the GPU stage (RUNS22/g22) against its start, the sixteenth
+      # (RUNS20/v20_more), plain and +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT22/val_gpu_${EVAL_NAME#eval_}" "$RUNS22/g22" "$RUNS20/v20_more" ;;
     predictor-v19)  # the GPU stage trained on here side by side at equal wall time, one thread each, by the thirteenth's
       # recipe (train7, aligned branch, mirror-consistency term): at its batch of 32 from peak 1e-4 (v19_b32,
       # V19_B32_ITERS [1900]) and at batch 128 from peak 2e-4 (v19_b128, V19_B128_ITERS [430]): is the CPU recipe's
