@@ -105,6 +105,13 @@
 #   the same with CAL=0 ITERS=900 WARMUP=20 END=255
 #     (900 iterations at batch 512 in 200 s, 4.5 it/s: 461,000 samples, about three of the CPU's 5,000-iteration
 #     passes at batch 32; reproduce_models.sh fetch-gpu-v22, val-*-v22-gpu)
+#   It came back far worse on the validation split (mirror averaged 0.500 / 0.466 / 0.467 against the sixteenth's
+#   0.580 / 0.536 / 0.520): the predictor is specific to the views it trains at, and these were off the CPU data's grid
+#   (12 azimuths 30 degrees apart at 0 / 15 / 30 / 45). On the same validation shapes (reproduce_models.sh views-v22) the
+#   sixteenth scores 0.609 at grid views and 0.540 at views off it, g22 0.526 and 0.600: 900 iterations moved it to
+#   its new views. So a GPU stage must train at the views it will be measured and used at: all 48 (SHAPES=100, the
+#   fourteenth's data, builds with them in about five minutes now that the generator runs on the GPU), or a data
+#   option that draws each shape's views from the grid (not written yet).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
@@ -125,8 +132,8 @@ RUNS=${RUNS:-runs/gpu10}
 DEVICE=${DEVICE:-cuda}
 SHAPES=${SHAPES:-100}
 # VIEWS azimuths at each of ELEVATIONS [12; 0 15 30 45: the 48 views of the CPU data]. Fewer views per shape build
-# faster on the lent machine: SHAPES=200 VIEWS=8 ELEVATIONS="0 20 40" renders the 2,087 training shapes of the CPU's
-# DATA20 at 24 views each, half the views of the 48, so the data and both generated sets fit in one call beside training
+# faster on the lent machine, but the predictor learns the views it is trained at and forgets others (the seventeenth
+# candidate's stage below): keep the 48 unless the run is meant to move to other views
 VIEWS=${VIEWS:-12}
 ELEVATIONS=${ELEVATIONS:-"0 15 30 45"}
 CAL=${CAL:-60}
