@@ -1450,18 +1450,22 @@ EOF
       [ -f "$RUNS19/g19/config.json" ] || { echo "predictor-v20 starts from $RUNS19/g19: run the GPU stage and fetch-gpu-v19 first" >&2; exit 1; }
       [ -f "$DATA20/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v20 reads $DATA20: run data-v20 generated-v20 generated-mirror-v20 first" >&2; exit 1; }
       recipe20 "$RUNS19/g19" "$RUNS20/v20_data" "${V20_ITERS:-1900}" "${V20_MINUTES:-45}" "${V20_THREADS:-2}" ;;
-    predictor-v20-more|predictor-v21-more)  # the fifteenth predictor (RUNS20/v20_data) trained on along a new cosine on
-      # DATA20 by the same recipe into RUNS20/v20_more (the sixteenth), and the sixteenth so again into RUNS20/v21_more
-      # (5,000 iterations [V20_MORE_ITERS, V21_MORE_ITERS], 60 minutes at most [V20_MORE_MINUTES, V21_MORE_MINUTES], two
-      # threads; resumes): do more passes over the 2,087 shapes keep helping? Set against their start by val-*-v2X-more
+    predictor-v20-more|predictor-v21-more|predictor-v22-more)  # the fifteenth predictor (RUNS20/v20_data) trained on
+      # along a new cosine on DATA20 by the same recipe into RUNS20/v20_more (the sixteenth), the sixteenth so again into
+      # RUNS20/v21_more (the seventeenth), and the seventeenth into RUNS20/v22_more (5,000 iterations [V2X_MORE_ITERS],
+      # 60 minutes at most [V2X_MORE_MINUTES], two threads; resumes): do more passes over the 2,087 shapes keep helping?
+      # Set against their start by val-*-v2X-more
       local from=v20_data to=v20_more iters=${V20_MORE_ITERS:-5000} minutes=${V20_MORE_MINUTES:-60}
       [ "$1" = predictor-v21-more ] && from=v20_more to=v21_more iters=${V21_MORE_ITERS:-5000} minutes=${V21_MORE_MINUTES:-60}
+      [ "$1" = predictor-v22-more ] && from=v21_more to=v22_more iters=${V22_MORE_ITERS:-5000} minutes=${V22_MORE_MINUTES:-60}
       [ -f "$RUNS20/$from/config.json" ] || { echo "$1 starts from $RUNS20/$from: train it first" >&2; exit 1; }
       recipe20 "$RUNS20/$from" "$RUNS20/$to" "$iters" "$minutes" 2 ;;
-    val-v20-more|val-strong-v20-more|val-side-v20-more|val-v21-more|val-strong-v21-more|val-side-v21-more)  # a
-      # predictor-v2X-more run against its start, +mirror, validation split
+    val-v20-more|val-strong-v20-more|val-side-v20-more|val-v21-more|val-strong-v21-more|val-side-v21-more|\
+    val-v22-more|val-strong-v22-more|val-side-v22-more)  # a predictor-v2X-more run against its start, +mirror,
+      # validation split
       local c=${1%-more} out=$OUT20 run=v20_more base=v20_data
       [ "${1##*-v}" = 21-more ] && out=$OUT21 run=v21_more base=v20_more
+      [ "${1##*-v}" = 22-more ] && out=$OUT22 run=v22_more base=v21_more
       eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$out/val_more_${EVAL_NAME#eval_}" "$RUNS20/$run" "$RUNS20/$base" ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
