@@ -106,6 +106,9 @@
 #   sixteenth trained 5,000 more iterations on the CPU (predictor-v21-more, RUNS20/v21_more), chosen on the validation
 #   split (val-*-v21-more, out/v22/choice.txt); all-v22 measures, exports, times and ships it like all-v21, cost-both-v22
 #   times it beside the sixteenth's files, session-v22 the app under the pen, logs-v22 and overfit-v22 its training.
+#   predictor-v22-more trains it on by the same recipe (into RUNS20/v22_more), val-*-v22-more sets that against it.
+# The next data (DATA30 [data/proc300e4]): 300 shapes per category, DATA20's files linked in (data-v23), and the
+#   generator's images of its train split (generated-v23, generated-mirror-v23), for a predictor on three times DATA2.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -175,6 +178,7 @@ OUT19=${OUT19:-out/v19}
 RUNS20=${RUNS20:-runs/v20}
 OUT20=${OUT20:-out/v20}
 DATA20=${DATA20:-data/proc200e4}
+DATA30=${DATA30:-data/proc300e4}
 OUT21=${OUT21:-out/v21}
 RUNS22=${RUNS22:-runs/v22}
 OUT22=${OUT22:-out/v22}
@@ -1440,6 +1444,15 @@ EOF
       if [ ! -d "$DATA20/shapes" ] && [ -d "$DATA2/shapes" ]; then mkdir -p "$DATA20" && cp -al "$DATA2/shapes" "$DATA20/"; fi
       sketchmesh data --source procedural --shapes-per-category 200 --views 12 --elevations 0 15 30 45 \
         --workers 2 --out "$DATA20" ;;
+    data-v23)  # DATA20's 2,600 shapes and 1,300 more (300 per category, the same views), as data-v20 grew DATA2: DATA20's
+      # shape files linked in, DATA2's validation and test shapes still out of training; about 21 min on 2 cores
+      if [ ! -d "$DATA30/shapes" ] && [ -d "$DATA20/shapes" ]; then mkdir -p "$DATA30" && cp -al "$DATA20/shapes" "$DATA30/"; fi
+      sketchmesh data --source procedural --shapes-per-category 300 --views 12 --elevations 0 15 30 45 \
+        --workers 2 --out "$DATA30" ;;
+    generated-v23|generated-mirror-v23)  # generated-v8 and generated-mirror-v9 on DATA30's train split (the same
+      # generator), about 42 min each on 2 cores; resume
+      local s=generated-v8; [ "$1" = generated-mirror-v23 ] && s=generated-mirror-v9
+      DATA2=$DATA30 step "$s" ;;
     generated-v20)  # generated-v8 on DATA20's train split (the same generator), 28 min
       DATA2=$DATA20 step generated-v8 ;;
     generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 28 min
