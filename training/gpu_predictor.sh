@@ -110,8 +110,9 @@
 #   (12 azimuths 30 degrees apart at 0 / 15 / 30 / 45). On the same validation shapes (reproduce_models.sh views-v22) the
 #   sixteenth scores 0.609 at grid views and 0.540 at views off it, g22 0.526 and 0.600: 900 iterations moved it to
 #   its new views. So a GPU stage must train at the views it will be measured and used at: all 48 (SHAPES=100, the
-#   fourteenth's data, builds with them in about five minutes now that the generator runs on the GPU), or a data
-#   option that draws each shape's views from the grid (not written yet).
+#   fourteenth's data: 62,400 views like this call's, so at its rates about 263 s of data and 2 x 91 s of generated
+#   sets, 7.5 minutes: a first call builds and a second call on the warm machine trains), or a data option that
+#   draws each shape's views from the grid (not written yet).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
