@@ -108,7 +108,8 @@
 #   times it beside the sixteenth's files, session-v22 the app under the pen, logs-v22 and overfit-v22 its training.
 #   predictor-v22-more trains it on by the same recipe (into RUNS20/v22_more), val-*-v22-more sets that against it.
 # The next data (DATA30 [data/proc300e4]): 300 shapes per category, DATA20's files linked in (data-v23), and the
-#   generator's images of its train split (generated-v23, generated-mirror-v23), for a predictor on three times DATA2.
+#   generator's images of its train split (generated-v23, generated-mirror-v23), for a predictor on three times DATA2:
+#   predictor-v23 (the seventeenth on it, into RUNS23 [runs/v23]), val-*-v23 (into OUT23 [out/v23]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -179,6 +180,8 @@ RUNS20=${RUNS20:-runs/v20}
 OUT20=${OUT20:-out/v20}
 DATA20=${DATA20:-data/proc200e4}
 DATA30=${DATA30:-data/proc300e4}
+RUNS23=${RUNS23:-runs/v23}
+OUT23=${OUT23:-out/v23}
 OUT21=${OUT21:-out/v21}
 RUNS22=${RUNS22:-runs/v22}
 OUT22=${OUT22:-out/v22}
@@ -1453,6 +1456,17 @@ EOF
       # generator), about 42 min each on 2 cores; resume
       local s=generated-v8; [ "$1" = generated-mirror-v23 ] && s=generated-mirror-v9
       DATA2=$DATA30 step "$s" ;;
+    predictor-v23)  # the seventeenth predictor (RUNS20/v21_more) trained on DATA30 by the DATA20 recipe (recipe20 on the
+      # larger data) into RUNS23/v23_data: V23_ITERS [5000], V23_MINUTES [60] at most, two threads; resumes.
+      # predictor-v22-more is its equal-sample control on DATA20 (the same start, recipe and iterations)
+      [ -f "$RUNS20/v21_more/config.json" ] || { echo "predictor-v23 starts from $RUNS20/v21_more: run predictor-v21-more first" >&2; exit 1; }
+      [ -f "$DATA30/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v23 reads $DATA30: run data-v23 generated-v23 generated-mirror-v23 first" >&2; exit 1; }
+      DATA20=$DATA30 recipe20 "$RUNS20/v21_more" "$RUNS23/v23_data" "${V23_ITERS:-5000}" "${V23_MINUTES:-60}" 2 ;;
+    val-v23|val-strong-v23|val-side-v23)  # predictor-v23's run against its start (RUNS20/v21_more) and, when it has run,
+      # its equal-sample control on DATA20 (RUNS20/v22_more), plain and +mirror, on DATA2's validation split
+      local bases=("$RUNS20/v21_more"); [ -f "$RUNS20/v22_more/config.json" ] && bases+=("$RUNS20/v22_more")
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT23/val_${EVAL_NAME#eval_}" "$RUNS23/v23_data" "${bases[@]}" ;;
     generated-v20)  # generated-v8 on DATA20's train split (the same generator), 28 min
       DATA2=$DATA20 step generated-v8 ;;
     generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 28 min
