@@ -1400,16 +1400,17 @@ EOF
     views-v22)  # is the predictor specific to the 48 views it was trained at (12 azimuths, 30 degrees apart, at 0 / 15 / 30
       # / 45 degrees)? DATA2's first 20 shapes per category (the same shapes and splits) at 24 of those views
       # (DATAV22 [data/views22]/grid: 12 azimuths at 15 and 30) and at 16 views off them (DATAV22/off: 8 azimuths 45
-      # degrees apart at 20 and 40), the sixteenth (RUNS20/v20_more) and the GPU stage (RUNS22/g22, trained at 8 x
-      # {0, 20, 40}) on the validation shapes of each; about 10 min of rendering on 2 cores
+      # degrees apart at 20 and 40), the sixteenth (RUNS20/v20_more), the GPU stage (RUNS22/g22, trained at 8 x
+      # {0, 20, 40}) and the seventeenth (RUNS20/v21_more) on the validation shapes of each; about 10 min of rendering
+      # on 2 cores (once: a rerun finds the views rendered)
       local v
       for v in "grid 12 15 30" "off 8 20 40"; do
         read -r name n e1 e2 <<< "$v"
         sketchmesh data --source procedural --shapes-per-category 20 --views "$n" --elevations "$e1" "$e2" --workers 2 \
           --no-progress --out "${DATAV22:-data/views22}/$name"
         sketchmesh eval "$RUNS20/v20_more" --data "${DATAV22:-data/views22}/$name" --split val \
-          --generator-run "$RUNS8/fifth/generator" --baseline-run "$RUNS22/g22" --no-retrieval --max-samples "$SAMPLES2" \
-          --threads 2 --out "$OUT22/views_$name"
+          --generator-run "$RUNS8/fifth/generator" --baseline-run "$RUNS22/g22" --baseline-run "$RUNS20/v21_more" --no-retrieval \
+          --max-samples "$SAMPLES2" --threads 2 --out "$OUT22/views_$name"
       done ;;
     val-v22-gpu|val-strong-v22-gpu|val-side-v22-gpu)  # the GPU stage (RUNS22/g22) against its start, the sixteenth
       # (RUNS20/v20_more), plain and +mirror, validation split
