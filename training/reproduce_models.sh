@@ -179,12 +179,13 @@ OUT19=${OUT19:-out/v19}
 RUNS20=${RUNS20:-runs/v20}
 OUT20=${OUT20:-out/v20}
 DATA20=${DATA20:-data/proc200e4}
-DATA30=${DATA30:-data/proc300e4}
-RUNS23=${RUNS23:-runs/v23}
-OUT23=${OUT23:-out/v23}
 OUT21=${OUT21:-out/v21}
 RUNS22=${RUNS22:-runs/v22}
 OUT22=${OUT22:-out/v22}
+DATAV22=${DATAV22:-data/views22}
+DATA30=${DATA30:-data/proc300e4}
+RUNS23=${RUNS23:-runs/v23}
+OUT23=${OUT23:-out/v23}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -263,6 +264,12 @@ recipe20() {  # predictor-v19's batch-32 recipe on DATA20 (the larger predictor 
   # peak 1e-4 cosine): train7 from run $1 into run $2, $3 iterations, $4 minutes at most, $5 threads
   PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
     train7 "$@"
+}
+
+more_pass() {  # predictor-vN-more's runs in RUNS20 (N = $1: 20, 21 or 22): MORE_FROM its start, MORE_TO its run
+  MORE_TO=v$1_more MORE_FROM=v$(($1 - 1))_more
+  [ "$1" = 20 ] && MORE_FROM=v20_data
+  return 0
 }
 
 candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19, v20, v21 or v22): CAND_RUN its run, CAND_BASE the run its
@@ -1407,8 +1414,8 @@ EOF
       for v in "grid 12 15 30" "off 8 20 40"; do
         read -r name n e1 e2 <<< "$v"
         sketchmesh data --source procedural --shapes-per-category 20 --views "$n" --elevations "$e1" "$e2" --workers 2 \
-          --no-progress --out "${DATAV22:-data/views22}/$name"
-        sketchmesh eval "$RUNS20/v20_more" --data "${DATAV22:-data/views22}/$name" --split val \
+          --no-progress --out "$DATAV22/$name"
+        sketchmesh eval "$RUNS20/v20_more" --data "$DATAV22/$name" --split val \
           --generator-run "$RUNS8/fifth/generator" --baseline-run "$RUNS22/g22" --baseline-run "$RUNS20/v21_more" --no-retrieval \
           --max-samples "$SAMPLES2" --threads 2 --out "$OUT22/views_$name"
       done ;;
@@ -1483,19 +1490,17 @@ EOF
       # RUNS20/v21_more (the seventeenth), and the seventeenth into RUNS20/v22_more (5,000 iterations [V2X_MORE_ITERS],
       # 60 minutes at most [V2X_MORE_MINUTES], two threads; resumes): do more passes over the 2,087 shapes keep helping?
       # Set against their start by val-*-v2X-more
-      local from=v20_data to=v20_more iters=${V20_MORE_ITERS:-5000} minutes=${V20_MORE_MINUTES:-60}
-      [ "$1" = predictor-v21-more ] && from=v20_more to=v21_more iters=${V21_MORE_ITERS:-5000} minutes=${V21_MORE_MINUTES:-60}
-      [ "$1" = predictor-v22-more ] && from=v21_more to=v22_more iters=${V22_MORE_ITERS:-5000} minutes=${V22_MORE_MINUTES:-60}
-      [ -f "$RUNS20/$from/config.json" ] || { echo "$1 starts from $RUNS20/$from: train it first" >&2; exit 1; }
-      recipe20 "$RUNS20/$from" "$RUNS20/$to" "$iters" "$minutes" 2 ;;
+      local n=${1#predictor-v}; n=${n%-more}; more_pass "$n"
+      local iters=V${n}_MORE_ITERS minutes=V${n}_MORE_MINUTES
+      [ -f "$RUNS20/$MORE_FROM/config.json" ] || { echo "$1 starts from $RUNS20/$MORE_FROM: train it first" >&2; exit 1; }
+      recipe20 "$RUNS20/$MORE_FROM" "$RUNS20/$MORE_TO" "${!iters:-5000}" "${!minutes:-60}" 2 ;;
     val-v20-more|val-strong-v20-more|val-side-v20-more|val-v21-more|val-strong-v21-more|val-side-v21-more|\
     val-v22-more|val-strong-v22-more|val-side-v22-more)  # a predictor-v2X-more run against its start, +mirror,
       # validation split
-      local c=${1%-more} out=$OUT20 run=v20_more base=v20_data
-      [ "${1##*-v}" = 21-more ] && out=$OUT21 run=v21_more base=v20_more
-      [ "${1##*-v}" = 22-more ] && out=$OUT22 run=v22_more base=v21_more
+      local c=${1%-more} n=${1##*-v}; n=${n%-more}; more_pass "$n"
+      local out=OUT$n
       eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$out/val_more_${EVAL_NAME#eval_}" "$RUNS20/$run" "$RUNS20/$base" ;;
+      eval_against val "${!out}/val_more_${EVAL_NAME#eval_}" "$RUNS20/$MORE_TO" "$RUNS20/$MORE_FROM" ;;
     val-v20|val-strong-v20|val-side-v20)  # predictor-v20's run against its equal-sample control on DATA2 (v19_b32) and
       # their start (g19), plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
