@@ -351,3 +351,54 @@ def test_calibrating_an_import_ignores_the_mirrored_inputs(setup):
     assert x.shape == (4, 3, 64, 64) and "generated set cal_in" in what
     rows = open_generated(data, "cal_in")
     assert any(np.allclose(x[0].numpy(), rows.rows(np.array([r]))[0]) for r in np.nonzero(rows.done)[0])
+
+
+def test_a_grown_dataset_copies_the_rows_of_the_shapes_it_shares(setup, tmp_path):
+    """--reuse: rows of shapes held in equal files come from the other dataset's set (its draws, at its row numbers);
+    a changed file is generated again, and the result does not depend on what an earlier call had written."""
+    import shutil
+
+    from training.data.dataset import write_manifest
+
+    data, models = setup
+    build_generated(data, models, "grow", seed=2, progress=False)
+    grown = tmp_path / "grown"
+    shutil.copytree(data / "shapes", grown / "shapes")  # equal bytes, not links: the content check decides
+    manifest = json.loads((data / "manifest.json").read_text())
+    train = [s["file"] for s in manifest["shapes"] if s["split"] == "train"]
+    (grown / train[0]).unlink()  # every later row moves up: a fresh build would draw other sketches for them
+    changed = train[1]
+    with np.load(grown / changed) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["poly_points"] = arrays["poly_points"][:, ::-1].copy()  # another drawing
+    np.savez_compressed(grown / changed, **arrays)
+    write_manifest(grown)
+
+    partial = build_generated(grown, models, "grow", seed=2, max_shapes=2, progress=False)  # an earlier, stopped call
+    assert partial["written"] == 6 and partial["reused"] == 0
+    r = build_generated(grown, models, "grow", seed=2, reuse_from=data, progress=False)
+    shared = len(train) - 2
+    assert r["reused"] == 3 * shared and r["done"] == r["views"] == 3 * (len(train) - 1)
+    assert r["written"] == 0  # the changed shape was among the two the stopped call generated
+    fresh = build_generated(grown, models, "fresh", seed=2, progress=False)
+    assert fresh["written"] == 3 * (len(train) - 1)
+    a, b, f = open_generated(data, "grow"), open_generated(grown, "grow"), open_generated(grown, "fresh")
+    rows_a, rows_b = open_mesh_cache(data).rows, open_mesh_cache(grown).rows
+    for file in train[1:]:
+        (fa, nv), (fb, _) = rows_a[file], rows_b[file]
+        if file == changed:  # generated here, as a fresh build does
+            np.testing.assert_array_equal(b.normals64[fb:fb + nv], f.normals64[fb:fb + nv])
+        else:  # the other dataset's rows, not this dataset's own draw
+            np.testing.assert_array_equal(b.normals64[fb:fb + nv], a.normals64[fa:fa + nv])
+            assert not np.array_equal(b.normals64[fb:fb + nv], f.normals64[fb:fb + nv])
+    assert json.loads((generated_dir(grown, "grow") / "info.json").read_text())["reused_from"] == \
+        [str(generated_dir(data, "grow").resolve())]
+    other = tmp_path / "other"
+    shutil.copytree(grown / "shapes", other / "shapes")
+    write_manifest(other)
+    with pytest.raises(DatasetError, match="other seed than"):  # the other set's settings, not this folder's
+        build_generated(other, models, "grow", seed=3, reuse_from=data, progress=False)
+    with pytest.raises(DatasetError, match="being built"):
+        build_generated(grown, models, "grow", seed=2, reuse_from=grown, progress=False)
+    with pytest.raises(DatasetError, match="no generated normals"):
+        build_generated(grown, models, "nowhere", seed=2, reuse_from=data, progress=False)

@@ -108,7 +108,8 @@
 #   times it beside the sixteenth's files, session-v22 the app under the pen, logs-v22 and overfit-v22 its training.
 #   predictor-v22-more trains it on by the same recipe (into RUNS20/v22_more), val-*-v22-more sets that against it.
 # The next data (DATA30 [data/proc300e4]): 300 shapes per category, DATA20's files linked in (data-v23), and the
-#   generator's images of its train split (generated-v23, generated-mirror-v23), for a predictor on three times DATA2:
+#   generator's images of its train split (generated-v23, generated-mirror-v23: DATA20's rows copied for its shapes),
+#   for a predictor on three times DATA2:
 #   predictor-v23 (the seventeenth on it, into RUNS23 [runs/v23]), val-*-v23 (into OUT23 [out/v23]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
@@ -1461,9 +1462,12 @@ EOF
       sketchmesh data --source procedural --shapes-per-category 300 --views 12 --elevations 0 15 30 45 \
         --workers 2 --out "$DATA30" ;;
     generated-v23|generated-mirror-v23)  # generated-v8 and generated-mirror-v9 on DATA30's train split (the same
-      # generator), about 42 min each on 2 cores; resume
-      local s=generated-v8; [ "$1" = generated-mirror-v23 ] && s=generated-mirror-v9
-      DATA2=$DATA30 step "$s" ;;
+      # generator, settings and names), the rows of the shapes DATA20 holds in the same files copied from DATA20's sets
+      # (data generated --reuse: DATA20's draws of the augmentation; about 2 min), the rest generated: about 15 min
+      # each on 2 cores; resume
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16); [ "$1" = generated-mirror-v23 ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$DATA30" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$DATA20" ;;
     predictor-v23)  # the seventeenth predictor (RUNS20/v21_more) trained on DATA30 by the DATA20 recipe (recipe20 on the
       # larger data) into RUNS23/v23_data: V23_ITERS [5000], V23_MINUTES [60] at most, two threads; resumes.
       # predictor-v22-more is its equal-sample control on DATA20 (the same start, recipe and iterations)

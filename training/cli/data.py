@@ -114,6 +114,10 @@ def register(commands, bench) -> None:
     gen.add_argument("--torch-device", metavar="DEVICE", default=None,
                      help="run the generator in torch on DEVICE (cuda, cpu) instead of ONNX Runtime: the same network "
                           "rebuilt from the file, for a GPU machine; the workers only draw the sketches")
+    gen.add_argument("--reuse", metavar="DATASET", default=None,
+                     help="another dataset folder (the one this one grew from) whose set of the same --name was built "
+                          "with the same generator and settings: the rows of the shapes both hold in the same file are "
+                          "copied from it instead of generated again")
     gen.add_argument("--no-progress", action="store_true", help="no progress bar")
     gen.set_defaults(func=cmd_generated)
 
@@ -217,7 +221,9 @@ def cmd_generated(args: argparse.Namespace) -> int:
         net = generator_from_onnx(model_paths(resolve_models_dir(args.models))[0]).to(device)
     r = build_generated(args.dir, args.models, args.name, split=args.split, augment_strength=args.augment_strength,
                         seed=args.seed, workers=args.workers, progress=not args.no_progress, max_shapes=args.max_shapes,
-                        mirror=args.mirror, torch_generator=net)
+                        mirror=args.mirror, torch_generator=net, reuse_from=args.reuse)
+    if args.reuse:
+        print(f"{r['reused']} views copied from {args.reuse}")
     print(f"{r['written']} views generated in {r['seconds']:.1f} s; {r['done']} of the {r['views']} views of the "
           f"{args.split} split are done")
     return 0

@@ -23,6 +23,14 @@ the weights ``import-models`` reads) and moves it to the GPU; the worker process
 rows agree with ONNX Runtime's within their float16 storage. There, ONNX Runtime on the CPU cores is most of the
 cost of a set (about 220 views a second on 16 cores).
 
+A grown dataset need not run the generator again over the shapes it shares with the one it grew from
+(``reuse_from``; ``data generated --reuse``): the rows of every shape whose file is the same file in the other
+dataset (a hard link, or equal bytes) are copied from that dataset's set of the same name, built with the same
+generator, augmentation, seed and mirroring. They are that dataset's draws of the hand-drawn augmentation (its row
+numbers seed them), as good a draw as this dataset's own and the same bytes on every rebuild: copied rows overwrite
+whatever a row held before, so the result does not depend on how far an earlier call got. ``info.json`` names the
+source under ``reused_from``.
+
 Building resumes: rows are written shape by shape and ``done.npy`` is replaced atomically after
 them, so a killed build keeps what it finished. A folder made from another generator, augmentation,
 seed, mirroring or dataset state is refused with a message naming the difference.
@@ -181,7 +189,8 @@ def _torch_rows(net, device, file: str, sketches: np.ndarray, small: int) -> np.
 
 def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name: str, *, split: str = "train",
                     augment_strength: float = 0.5, seed: int = 0, workers: int = 1, progress: bool = True,
-                    max_shapes: int | None = None, mirror: bool = False, torch_generator=None) -> dict:
+                    max_shapes: int | None = None, mirror: bool = False, torch_generator=None,
+                    reuse_from: str | os.PathLike | None = None) -> dict:
     """Run the generator of ``models_dir`` over every view of ``split`` of the dataset ``root``; resumable.
 
     Args:
@@ -197,9 +206,12 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
         mirror: run the generator on every drawing flipped left to right (module doc).
         torch_generator: a torch module computing the generator of ``models_dir`` (module doc), run on the device
             its parameters are on instead of ONNX Runtime; the workers then only draw the sketches.
+        reuse_from: another dataset folder whose generated set ``name`` (same settings) supplies the rows of the shapes
+            both hold in the same file, copied before anything is generated (module doc).
 
     Returns:
-        {"written": views this call, "done": views of the split done, "views": views of the split, "seconds"}.
+        {"written": views this call, "done": views of the split done, "views": views of the split, "seconds",
+        "reused": views copied from ``reuse_from``}.
 
     Raises:
         DatasetError: bad arguments, a missing generator, or a folder built with other settings.
@@ -246,6 +258,10 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
         _save_done(folder, done)
         atomic_write_text(folder / "info.json", json.dumps(info, indent=1) + "\n")
     shapes = [s for s in manifest["shapes"] if split == "all" or s["split"] == split]
+    t0 = time.perf_counter()
+    reused = 0
+    if reuse_from is not None:
+        reused = _reuse_rows(root, folder, info, arrays.rows, shapes, normals, done, Path(reuse_from), name, progress)
     todo = []
     for s in shapes:
         first, nv = arrays.rows[s["file"]]
@@ -255,7 +271,6 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     if max_shapes is not None:
         todo = todo[:max_shapes]
     total_views = sum(arrays.rows[s["file"]][1] for s in shapes)
-    t0 = time.perf_counter()
     written = 0
     bar = tqdm(total=len(todo), desc=f"generated normals ({split})", unit="shape", disable=not progress)
     last_save = time.monotonic()
@@ -299,4 +314,52 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     for s in shapes:
         first, nv = arrays.rows[s["file"]]
         views_done += int(done[first:first + nv].sum())
-    return {"written": written, "done": views_done, "views": total_views, "seconds": time.perf_counter() - t0}
+    return {"written": written, "done": views_done, "views": total_views, "seconds": time.perf_counter() - t0,
+            "reused": reused}
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """True when ``a`` and ``b`` are one file (a hard link) or hold equal bytes."""
+    try:
+        if os.path.samefile(a, b):
+            return True
+        return a.stat().st_size == b.stat().st_size and _sha256(a) == _sha256(b)
+    except OSError:
+        return False
+
+
+def _reuse_rows(root: Path, folder: Path, info: dict, rows: dict, shapes: list, normals, done: np.ndarray,
+                other_root: Path, name: str, progress: bool) -> int:
+    """Copy into ``normals``/``done`` the rows of ``shapes`` that ``other_root``'s set ``name`` holds for the same file;
+    returns the views copied. The other set must have been built with this one's settings (module doc)."""
+    from tqdm import tqdm
+
+    from training.data.mesh_cache import open_mesh_cache
+
+    if other_root.resolve() == root.resolve():
+        raise DatasetError(f"--reuse {other_root} is the dataset being built")
+    other = open_generated(other_root, name)
+    diff = [k for k in ("generator_sha256", "augment_strength", "seed", "small_size", "mirror")
+            if other.info.get(k, False if k == "mirror" else None) != info[k]]
+    if diff:
+        raise DatasetError(f"{other.folder} was built with other {', '.join(diff)} than {folder}; it cannot be reused")
+    other_rows = open_mesh_cache(other_root, load_manifest(other_root)).rows
+    copied = 0
+    for s in tqdm(shapes, desc="reused rows", unit="shape", disable=not progress):
+        f = s["file"]
+        if f not in other_rows:
+            continue
+        (first, nv), (ofirst, onv) = rows[f], other_rows[f]
+        if nv != onv or not other.done[ofirst:ofirst + onv].all() or not _same_file(root / f, other_root / f):
+            continue
+        normals[first:first + nv] = other.normals64[ofirst:ofirst + nv]
+        done[first:first + nv] = True
+        copied += nv
+    normals.flush()  # rows first, then the mask that says they are there
+    _save_done(folder, done)
+    meta = json.loads((folder / "info.json").read_text())
+    source = str(other.folder.resolve())
+    if source not in meta.get("reused_from", []):
+        meta["reused_from"] = [*meta.get("reused_from", []), source]
+        atomic_write_text(folder / "info.json", json.dumps(meta, indent=1) + "\n")
+    return copied
