@@ -354,6 +354,7 @@ EOF
 }
 
 step() {
+  EVAL_EXTRA=()  # every step starts from the clean case: a step that sets no case (overfit-*) inherits none from the one before
   case "$1" in
     data)
       sketchmesh data --source procedural --shapes-per-category 30 --workers 2 --out "$DATA" ;;
