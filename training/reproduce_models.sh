@@ -114,6 +114,8 @@
 #   candidate, if it is chosen there (out/v23/choice.txt): all-v23 measures, exports, times and ships it like all-v22,
 #   retrieval-*-v23 the retrieval floor from DATA30's train split, cost-both-v23 times it beside the seventeenth's
 #   files, session-v23 the app under the pen, logs-v23 and overfit-v23 its training.
+# The data after it (DATA40 [data/proc400e4]): 400 shapes per category, DATA30's files linked in (data-v24), and the
+#   generator's images of its train split (generated-v24, generated-mirror-v24: DATA30's rows copied for its shapes).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -188,6 +190,7 @@ RUNS22=${RUNS22:-runs/v22}
 OUT22=${OUT22:-out/v22}
 DATAV22=${DATAV22:-data/views22}
 DATA30=${DATA30:-data/proc300e4}
+DATA40=${DATA40:-data/proc400e4}
 RUNS23=${RUNS23:-runs/v23}
 OUT23=${OUT23:-out/v23}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -1475,6 +1478,16 @@ EOF
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       local name=(--name normals16); [ "$1" = generated-mirror-v23 ] && name=(--name normals16_mirror --mirror)
       sketchmesh data generated "$DATA30" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$DATA20" ;;
+    data-v24)  # DATA30's 3,900 shapes and 1,300 more (400 per category, the same views), as data-v23 grew DATA20: DATA30's
+      # shape files linked in; about 45 min on 2 cores
+      if [ ! -d "$DATA40/shapes" ] && [ -d "$DATA30/shapes" ]; then mkdir -p "$DATA40" && cp -al "$DATA30/shapes" "$DATA40/"; fi
+      sketchmesh data --source procedural --shapes-per-category 400 --views 12 --elevations 0 15 30 45 \
+        --workers 2 --out "$DATA40" ;;
+    generated-v24|generated-mirror-v24)  # generated-v23 and generated-mirror-v23 on DATA40's train split, DATA30's rows
+      # copied for its shapes (data generated --reuse), the about 1,040 new shapes generated: about 15 min each
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16); [ "$1" = generated-mirror-v24 ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$DATA40" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$DATA30" ;;
     predictor-v23)  # the seventeenth predictor (RUNS20/v21_more) trained on DATA30 by the DATA20 recipe (recipe20 on the
       # larger data) into RUNS23/v23_data: V23_ITERS [5000], V23_MINUTES [60] at most, two threads; resumes.
       # predictor-v22-more is its equal-sample control on DATA20 (the same start, recipe and iterations)
