@@ -115,7 +115,8 @@
 #   retrieval-*-v23 the retrieval floor from DATA30's train split, cost-both-v23 times it beside the seventeenth's
 #   files, session-v23 the app under the pen, logs-v23 and overfit-v23 its training.
 # The data after it (DATA40 [data/proc400e4]): 400 shapes per category, DATA30's files linked in (data-v24), and the
-#   generator's images of its train split (generated-v24, generated-mirror-v24: DATA30's rows copied for its shapes).
+#   generator's images of its train split (generated-v24, generated-mirror-v24: DATA30's rows copied for its shapes);
+#   predictor-v24 trains the eighteenth on it (into RUNS24 [runs/v24]), val-*-v24 sets it against the eighteenth (OUT24 [out/v24]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -193,6 +194,8 @@ DATA30=${DATA30:-data/proc300e4}
 DATA40=${DATA40:-data/proc400e4}
 RUNS23=${RUNS23:-runs/v23}
 OUT23=${OUT23:-out/v23}
+RUNS24=${RUNS24:-runs/v24}
+OUT24=${OUT24:-out/v24}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1499,6 +1502,15 @@ EOF
       local bases=("$RUNS20/v21_more"); [ -f "$RUNS20/v22_more/config.json" ] && bases+=("$RUNS20/v22_more")
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT23/val_${EVAL_NAME#eval_}" "$RUNS23/v23_data" "${bases[@]}" ;;
+    predictor-v24)  # the eighteenth predictor (RUNS23/v23_data) trained on DATA40 by the same recipe into RUNS24/v24_data:
+      # V24_ITERS [5000], V24_MINUTES [60] at most, two threads; resumes
+      [ -f "$RUNS23/v23_data/config.json" ] || { echo "predictor-v24 starts from $RUNS23/v23_data: run predictor-v23 first" >&2; exit 1; }
+      [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
+      DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-5000}" "${V24_MINUTES:-60}" 2 ;;
+    val-v24|val-strong-v24|val-side-v24)  # predictor-v24's run against its start, the bundled eighteenth (RUNS23/v23_data),
+      # plain and +mirror, on DATA2's validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT24/val_${EVAL_NAME#eval_}" "$RUNS24/v24_data" "$RUNS23/v23_data" ;;
     generated-v20)  # generated-v8 on DATA20's train split (the same generator), 28 min
       DATA2=$DATA20 step generated-v8 ;;
     generated-mirror-v20)  # generated-mirror-v9 on DATA20's train split, 28 min
