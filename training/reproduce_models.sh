@@ -1469,28 +1469,21 @@ EOF
       if [ ! -d "$DATA20/shapes" ] && [ -d "$DATA2/shapes" ]; then mkdir -p "$DATA20" && cp -al "$DATA2/shapes" "$DATA20/"; fi
       sketchmesh data --source procedural --shapes-per-category 200 --views 12 --elevations 0 15 30 45 \
         --workers 2 --out "$DATA20" ;;
-    data-v23)  # DATA20's 2,600 shapes and 1,300 more (300 per category, the same views), as data-v20 grew DATA2: DATA20's
-      # shape files linked in, DATA2's validation and test shapes still out of training; about 21 min on 2 cores
-      if [ ! -d "$DATA30/shapes" ] && [ -d "$DATA20/shapes" ]; then mkdir -p "$DATA30" && cp -al "$DATA20/shapes" "$DATA30/"; fi
-      sketchmesh data --source procedural --shapes-per-category 300 --views 12 --elevations 0 15 30 45 \
-        --workers 2 --out "$DATA30" ;;
-    generated-v23|generated-mirror-v23)  # generated-v8 and generated-mirror-v9 on DATA30's train split (the same
-      # generator, settings and names), the rows of the shapes DATA20 holds in the same files copied from DATA20's sets
-      # (data generated --reuse: DATA20's draws of the augmentation; about 2 min), the rest generated: about 15 min
-      # each on 2 cores; resume
+    data-v23|data-v24)  # a grown dataset, as data-v20 grew DATA2: DATA20's 2,600 shapes and 1,300 more (DATA30, 300 per
+      # category), then DATA30's 3,900 and 1,300 more (DATA40, 400 per category), the same views; the smaller one's shape
+      # files linked in, DATA2's validation and test shapes still out of training; about 45 min each on 2 cores
+      local from=$DATA20 to=$DATA30 n=300; [ "$1" = data-v24 ] && from=$DATA30 to=$DATA40 n=400
+      if [ ! -d "$to/shapes" ] && [ -d "$from/shapes" ]; then mkdir -p "$to" && cp -al "$from/shapes" "$to/"; fi
+      sketchmesh data --source procedural --shapes-per-category "$n" --views 12 --elevations 0 15 30 45 \
+        --workers 2 --out "$to" ;;
+    generated-v23|generated-mirror-v23|generated-v24|generated-mirror-v24)  # generated-v8 and generated-mirror-v9 on the
+      # grown dataset's train split (the same generator, settings and names: DATA30's for v23, DATA40's for v24), the rows
+      # of the shapes the smaller one holds in the same files copied from its sets (data generated --reuse: its draws of
+      # the augmentation; seconds), the about 1,040 new shapes generated: about 15 min each on 2 cores; resume
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      local name=(--name normals16); [ "$1" = generated-mirror-v23 ] && name=(--name normals16_mirror --mirror)
-      sketchmesh data generated "$DATA30" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$DATA20" ;;
-    data-v24)  # DATA30's 3,900 shapes and 1,300 more (400 per category, the same views), as data-v23 grew DATA20: DATA30's
-      # shape files linked in; about 45 min on 2 cores
-      if [ ! -d "$DATA40/shapes" ] && [ -d "$DATA30/shapes" ]; then mkdir -p "$DATA40" && cp -al "$DATA30/shapes" "$DATA40/"; fi
-      sketchmesh data --source procedural --shapes-per-category 400 --views 12 --elevations 0 15 30 45 \
-        --workers 2 --out "$DATA40" ;;
-    generated-v24|generated-mirror-v24)  # generated-v23 and generated-mirror-v23 on DATA40's train split, DATA30's rows
-      # copied for its shapes (data generated --reuse), the about 1,040 new shapes generated: about 15 min each
-      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      local name=(--name normals16); [ "$1" = generated-mirror-v24 ] && name=(--name normals16_mirror --mirror)
-      sketchmesh data generated "$DATA40" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$DATA30" ;;
+      local from=$DATA20 to=$DATA30; [ "${1##*-}" = v24 ] && from=$DATA30 to=$DATA40
+      local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$to" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 --reuse "$from" ;;
     predictor-v23)  # the seventeenth predictor (RUNS20/v21_more) trained on DATA30 by the DATA20 recipe (recipe20 on the
       # larger data) into RUNS23/v23_data: V23_ITERS [5000], V23_MINUTES [60] at most, two threads; resumes.
       # predictor-v22-more is its equal-sample control on DATA20 (the same start, recipe and iterations)
