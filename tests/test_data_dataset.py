@@ -221,6 +221,42 @@ def test_cli_build_preview_merge_and_bad_input(tmp_path, capsys):
     assert "must be > 0" in capsys.readouterr().err
 
 
+def test_views_per_shape_renders_a_per_shape_draw_of_the_grid_views(tmp_path, capsys):
+    from sketchmesh.cli import main
+
+    grid = ds.BuildSettings(size=32, small_size=16, num_azimuths=4, elevations=(0.0, 30.0))
+    sub = ds.BuildSettings(size=32, small_size=16, num_azimuths=4, elevations=(0.0, 30.0), views_per_shape=4)
+    # every view (0) is recorded as before the option existed, so datasets built then stay complete
+    assert "views_per_shape" not in json.loads(grid.to_json()) and json.loads(sub.to_json())["views_per_shape"] == 4
+    jobs = ds.make_jobs("procedural", 3, ["lamp"])
+    ds.build_dataset(tmp_path / "grid", jobs, grid, progress=False)
+    assert ds.build_dataset(tmp_path / "sub", jobs, sub, progress=False)["views"] == 3 * 4
+    drawn = []
+    for job in jobs:
+        picks = sub.grid_views(job.category, job.shape_id)
+        assert picks == sub.grid_views(job.category, job.shape_id) and len(set(picks)) == 4  # the same draw every time
+        assert sorted(i // 4 for i in picks) == [0, 0, 1, 1]  # 2 azimuths at each of the 2 elevations
+        drawn.append(tuple(picks))
+        with np.load(ds.shape_file(tmp_path / "grid", job.category, job.shape_id)) as full, \
+                np.load(ds.shape_file(tmp_path / "sub", job.category, job.shape_id)) as part:
+            # each stored view is the full grid's view at that index: same camera, angles, images, drawing
+            for key in ("cameras", "azimuths", "elevations", "normals64", "silhouette64", "sketch"):
+                np.testing.assert_array_equal(part[key], full[key][picks], err_msg=key)
+    assert len(set(drawn)) > 1  # drawn per shape, not one subset for all
+    data = ds.ShapeViewDataset(tmp_path / "sub", "all", extra_views=3, augment_strength=0.0, seed=0)
+    assert len(data) == 3 * 4
+    # an odd count draws from the whole grid; more than the grid is refused before anything is rendered
+    assert len(ds.BuildSettings(num_azimuths=4, elevations=(0.0, 30.0), views_per_shape=3).grid_views("lamp", "x")) == 3
+    with pytest.raises(ValueError, match="between 1 and the grid's 8 views"):
+        ds.BuildSettings(num_azimuths=4, elevations=(0.0, 30.0), views_per_shape=9).check()
+    capsys.readouterr()
+    assert main(["data", "--categories", "lamp", "--views", "4", "--views-per-shape", "9",
+                 "--out", str(tmp_path / "x")]) != 0
+    err = capsys.readouterr().err.strip()
+    assert "between 1 and the grid's 4 views" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "x").exists()
+
+
 def test_mesh_folder_source_with_a_broken_file(tmp_path):
     import trimesh
 

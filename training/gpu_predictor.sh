@@ -113,6 +113,16 @@
 #   fourteenth's data: 62,400 views like this call's, so at its rates about 263 s of data and 2 x 91 s of generated
 #   sets, 7.5 minutes: a first call builds and a second call on the warm machine trains), or a data option that
 #   draws each shape's views from the grid (not written yet).
+# The nineteenth candidate's GPU stage (2026-11-27, H100, one call, 10 minutes of device time held), from the bundled
+# eighteenth pair with nothing carried but .whl: twice DATA30's shapes at a twelfth of the views, each shape at 4 of the
+# 48 grid views (one azimuth drawn at each elevation, `data --views-per-shape`):
+#   SHAPES=600 VIEWS_PER_SHAPE=4 INPUTS=generated ARCH="--predictor-channels 64 --predictor-hidden 1024 \
+#     --predictor-aligned 128" EXTRA="--mirror-consistency 50" SPECS="g25 512 3e-4" END=568 GEN_MODELS=assets/models \
+#     bash training/gpu_predictor.sh assets/models
+#     (7,800 shapes / 31,200 views in 144 s, split md5 751cbb43...; generated sets of 24,952 views in 67 s and 69 s;
+#     import done at 325 s; 905 iterations at batch 512 in 189 s, 5.0 it/s: 463,000 samples; done at 561 s.) Lost: the
+#     device tool could not copy the two 15 MiB parts back because this machine's disk was full (old CI clones in
+#     /tmp), and the machine was handed back idle before a second call. Check `df -h .` here before a GPU call.
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
@@ -137,6 +147,10 @@ SHAPES=${SHAPES:-100}
 # candidate's stage below): keep the 48 unless the run is meant to move to other views
 VIEWS=${VIEWS:-12}
 ELEVATIONS=${ELEVATIONS:-"0 15 30 45"}
+# VIEWS_PER_SHAPE K [every view]: render K of those grid views per shape (`data --views-per-shape`, as many at each
+# elevation when K is a multiple of them): more shapes for the same rendering, still at the views the app is measured at
+VIEWS_PER_SHAPE=${VIEWS_PER_SHAPE:-}
+SUBSET=(); [ -n "$VIEWS_PER_SHAPE" ] && SUBSET=(--views-per-shape "$VIEWS_PER_SHAPE")
 CAL=${CAL:-60}
 END=${END:-555}
 SPECS=${SPECS:-"g10_b512 512 8e-4"}
@@ -177,7 +191,7 @@ if [ -f "$DATA/manifest.json" ] && [ -f "$DATA/.cache/mesh_arrays.bin" ]; then
   echo "$DATA: already built"
 else
   # shellcheck disable=SC2086
-  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views "$VIEWS" --elevations $ELEVATIONS "${SIZE[@]}" \
+  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views "$VIEWS" --elevations $ELEVATIONS "${SUBSET[@]}" "${SIZE[@]}" \
     --workers "$(nproc)" --no-progress --out "$DATA" || exit 1
   python3 -c "
 import hashlib, json

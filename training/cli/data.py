@@ -52,6 +52,9 @@ def _add_build_flags(p: argparse.ArgumentParser, required_out: bool) -> None:
     p.add_argument("--views", type=positive_int, default=24, help="azimuths per elevation (default 24)")
     p.add_argument("--elevations", type=_elevation, nargs="+", default=[30.0], metavar="DEG",
                    help="elevations in degrees (default 30)")
+    p.add_argument("--views-per-shape", type=positive_int, default=None, metavar="K",
+                   help="render K of the grid's views per shape, drawn per shape (as many at each elevation when K "
+                        "is a multiple of them): more shapes for the same rendering (default: every view)")
     p.add_argument("--size", type=positive_int, default=256, help="sketch / normal image size (default 256)")
     p.add_argument("--small-size", type=positive_int, default=64, help="predictor target size (default 64)")
     p.add_argument("--workers", type=int_in(1, 256), default=1, help="processes rendering shapes in parallel")
@@ -169,8 +172,9 @@ def cmd_build(args: argparse.Namespace) -> int:
     shard = parse_shard(args.shard)
     try:
         settings = BuildSettings(size=args.size, small_size=args.small_size, num_azimuths=args.views,
-                                 elevations=tuple(args.elevations), augment_strength=args.augment_strength, seed=args.seed)
-        settings.render_settings()
+                                 elevations=tuple(args.elevations), augment_strength=args.augment_strength, seed=args.seed,
+                                 views_per_shape=args.views_per_shape or 0)
+        settings.check()
     except ValueError as exc:
         raise DataCommandError(str(exc)) from None
     if parse_source(args.source)[0] == "procedural":  # the job list itself can be too big to build

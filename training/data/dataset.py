@@ -146,6 +146,44 @@ class BuildSettings:
     elevations: tuple[float, ...] = (30.0,)
     augment_strength: float = 0.0
     seed: int = 0
+    views_per_shape: int = 0
+
+    @property
+    def grid_size(self) -> int:
+        """Views of the full grid: ``num_azimuths`` at each of ``elevations``."""
+        return int(self.num_azimuths) * len(self.elevations)
+
+    @property
+    def shape_views(self) -> int:
+        """Views rendered per shape: ``views_per_shape`` of the grid, or all of it (0)."""
+        return int(self.views_per_shape) or self.grid_size
+
+    def check(self) -> None:
+        """Raise ValueError for settings no build can use (the render settings' own checks included)."""
+        self.render_settings()
+        if not isinstance(self.views_per_shape, (int, np.integer)) or not 0 <= self.views_per_shape <= self.grid_size:
+            raise ValueError(f"views per shape must be between 1 and the grid's {self.grid_size} views "
+                             f"({self.num_azimuths} azimuths x {len(self.elevations)} elevations), got {self.views_per_shape}")
+
+    def grid_views(self, category: str, shape_id: str) -> list[int] | None:
+        """The grid views one shape is rendered at (indices, see :func:`training.data.render.view_cameras`).
+
+        None (every view) unless ``views_per_shape`` is set. Otherwise a draw without replacement
+        that depends only on the seed and the shape, so a resumed or sharded build renders the same
+        views; when ``views_per_shape`` is a multiple of the elevations it takes as many azimuths at
+        each elevation (the elevations stay as evenly covered as in the full grid), else any of the
+        grid's views. Sorted (elevation-major, like the full grid).
+        """
+        k = int(self.views_per_shape)
+        if k == 0 or k == self.grid_size:
+            return None
+        rng = np.random.default_rng([int(self.seed), zlib.crc32(f"{category}/{shape_id}".encode()), 0x5EED])
+        n_az, n_el = int(self.num_azimuths), len(self.elevations)
+        if k % n_el == 0:
+            picks = [e * n_az + int(a) for e in range(n_el) for a in rng.choice(n_az, k // n_el, replace=False)]
+        else:
+            picks = rng.choice(n_az * n_el, k, replace=False).tolist()
+        return sorted(int(i) for i in picks)
 
     def render_settings(self):
         from training.data.render import RenderSettings
@@ -156,6 +194,8 @@ class BuildSettings:
     def to_json(self) -> str:
         d = asdict(self)
         d["elevations"] = [float(e) for e in self.elevations]
+        if not self.views_per_shape:  # every view of the grid: as recorded before the option existed
+            del d["views_per_shape"]
         d["conventions"] = CONVENTIONS_ID
         d["format"] = FORMAT_ID
         from training.data.shapes import LIBRARY_VERSION  # light: manifold3d loads on first use
@@ -197,7 +237,7 @@ def build_cost(n_shapes: int, settings: BuildSettings, workers: int = 1) -> dict
         ``disk_min`` (a lower bound of the dataset's size on disk), all ints.
     """
     S, s = int(settings.size), int(settings.small_size)
-    n_views = int(settings.num_azimuths) * len(settings.elevations)
+    n_views = settings.shape_views
     per_view = S * S * (1 + 3 + 1 + (1 if settings.augment_strength > 0 else 0)) + s * s * (12 + 1) + 16 * 8 + 16
     per_shape = 2 * n_views * per_view + 64 * S * S  # arrays + their compressed copy + one view's render buffers
     return {
@@ -219,7 +259,7 @@ def check_build_request(out: str | os.PathLike, n_shapes: int, settings: BuildSe
     from engine.fileio import nearest_existing
 
     cost = build_cost(n_shapes, settings, workers)
-    n_views = int(settings.num_azimuths) * len(settings.elevations)
+    n_views = settings.shape_views
     gb = 1024**3
     memory = available_memory_bytes()
     if memory is not None and cost["memory"] > MEMORY_SHARE * memory:
@@ -227,7 +267,7 @@ def check_build_request(out: str | os.PathLike, n_shapes: int, settings: BuildSe
         raise DatasetError(
             f"{n_views} views per shape at {settings.size}x{settings.size} need {cost['memory_per_shape'] / gb:,.1f} GB "
             f"of memory per shape{at_once}, more than the {memory / gb:,.1f} GB available; "
-            "use fewer --views or --elevations, a smaller --size or fewer --workers")
+            "use fewer --views, --elevations or --views-per-shape, a smaller --size or fewer --workers")
     folder = nearest_existing(out)
     if folder.is_dir():
         free = shutil.disk_usage(folder).free
@@ -248,7 +288,7 @@ def render_job(job: Job, settings: BuildSettings) -> dict:
     from training.data.render import quantize_unit, render_shape, view_polylines
 
     mesh = job.load()
-    arrays = render_shape(mesh, settings.render_settings())
+    arrays = render_shape(mesh, settings.render_settings(), grid_views=settings.grid_views(job.category, job.shape_id))
     if settings.augment_strength > 0:
         arrays["sketch_aug"] = np.stack([
             quantize_unit(render_sketch(view_polylines(arrays, v), settings.size, settings.augment_strength,

@@ -14,6 +14,7 @@ predictor's supervision targets. The line drawing (:mod:`training.data.lines`) u
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,14 +58,21 @@ class RenderSettings:
         return self.num_azimuths * len(self.elevations)
 
 
-def view_cameras(mesh: Mesh, settings: RenderSettings) -> list[tuple[float, float, Camera]]:
-    """(azimuth_deg, elevation_deg, framed Camera) per view; elevation-major, azimuths 0, 360/n, ..."""
-    out = []
-    for el in settings.elevations:
-        for k in range(settings.num_azimuths):
-            az = 360.0 * k / settings.num_azimuths
-            out.append((az, float(el), frame_camera(look_at(az, float(el)), mesh.vertices)))
-    return out
+def view_cameras(mesh: Mesh, settings: RenderSettings,
+                 grid_views: Sequence[int] | None = None) -> list[tuple[float, float, Camera]]:
+    """(azimuth_deg, elevation_deg, framed Camera) per view; elevation-major, azimuths 0, 360/n, ...
+
+    ``grid_views``: indices into that grid (``elevation_index * num_azimuths + azimuth_index``) to
+    keep, in the order given; None keeps every view.
+    """
+    grid = [(360.0 * k / settings.num_azimuths, float(el))
+            for el in settings.elevations for k in range(settings.num_azimuths)]
+    if grid_views is not None:
+        bad = [int(i) for i in grid_views if not 0 <= int(i) < len(grid)]
+        if bad or not len(grid_views):
+            raise ValueError(f"grid_views must be a non-empty list of indices in [0, {len(grid)}), got {list(grid_views)}")
+        grid = [grid[int(i)] for i in grid_views]
+    return [(az, el, frame_camera(look_at(az, el), mesh.vertices)) for az, el in grid]
 
 
 def _render(mesh: Mesh, camera: Camera, size: int) -> dict:
@@ -78,13 +86,15 @@ def quantize_unit(x: np.ndarray) -> np.ndarray:
     return np.round(np.clip(np.asarray(x, np.float64), 0.0, 1.0) * 255.0).astype(np.uint8)
 
 
-def render_shape(mesh: Mesh, settings: RenderSettings = RenderSettings(), timings: dict | None = None) -> dict:
+def render_shape(mesh: Mesh, settings: RenderSettings = RenderSettings(), timings: dict | None = None,
+                 grid_views: Sequence[int] | None = None) -> dict:
     """Render every view of one shape into the arrays of the on-disk format (docs/DATA_FORMAT.md).
 
     Args:
         mesh: a normalised mesh (world frame).
         settings: sizes, views, line settings.
         timings: if given, accumulates seconds spent in "render", "render_small", "lines", "raster".
+        grid_views: render only these views of the grid (:func:`view_cameras`); None renders all.
 
     Returns:
         dict of numpy arrays; N = views, S = size, s = small_size, P = polylines, Q = points:
@@ -108,7 +118,7 @@ def render_shape(mesh: Mesh, settings: RenderSettings = RenderSettings(), timing
     t = time.perf_counter()
     prep = prepare_mesh(mesh, settings.lines)
     t = tick("lines", t)
-    views = view_cameras(mesh, settings)
+    views = view_cameras(mesh, settings, grid_views)
     N, S, s = len(views), settings.size, settings.small_size
     out = {
         "sketch": np.zeros((N, S, S), np.uint8),
