@@ -123,6 +123,8 @@
 #     import done at 325 s; 905 iterations at batch 512 in 189 s, 5.0 it/s: 463,000 samples; done at 561 s.) Lost: the
 #     device tool could not copy the two 15 MiB parts back because this machine's disk was full (old CI clones in
 #     /tmp), and the machine was handed back idle before a second call. Check `df -h .` here before a GPU call.
+#     Rerun as is on the next lent GPU, then GPU_FILES=<files_at> bash training/reproduce_models.sh fetch-gpu-v25
+#     val-v25-gpu val-strong-v25-gpu val-side-v25-gpu (against the eighteenth, out/v25).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}

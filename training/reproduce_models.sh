@@ -119,6 +119,9 @@
 #   predictor-v24 trains the eighteenth on it (into RUNS24 [runs/v24]), val-*-v24 sets it against the eighteenth (OUT24 [out/v24]).
 #   The nineteenth candidate, if it is chosen there (out/v24/choice.txt): all-v24, retrieval-*-v24 (from DATA40),
 #   cost-both-v24, session-v24, logs-v24 and overfit-v24, as for the eighteenth.
+# A lent GPU (gpu_predictor.sh's header: the bundled pair on 600 shapes per category, 4 of the 48 grid views each, in
+#   one call): fetch-gpu-v25 places what came back in RUNS25 [runs/v25], val-*-v25-gpu sets it against the eighteenth
+#   (OUT25 [out/v25]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -198,6 +201,8 @@ RUNS23=${RUNS23:-runs/v23}
 OUT23=${OUT23:-out/v23}
 RUNS24=${RUNS24:-runs/v24}
 OUT24=${OUT24:-out/v24}
+RUNS25=${RUNS25:-runs/v25}
+OUT25=${OUT25:-out/v25}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1422,6 +1427,12 @@ EOF
       RUNS2=$RUNS19 step fetch-gpu ;;
     fetch-gpu-v22)  # what gpu_predictor.sh brought back for the seventeenth candidate (GPU_FILES) -> RUNS22/NAME
       RUNS2=$RUNS22 step fetch-gpu ;;
+    fetch-gpu-v25)  # what gpu_predictor.sh brought back from the views-per-shape stage (GPU_FILES) -> RUNS25/NAME
+      RUNS2=$RUNS25 step fetch-gpu ;;
+    val-v25-gpu|val-strong-v25-gpu|val-side-v25-gpu)  # that stage's run (RUNS25/g25, V25_RUN) against its start, the
+      # bundled eighteenth (RUNS23/v23_data), plain and +mirror, validation split
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT25/val_gpu_${EVAL_NAME#eval_}" "$RUNS25/${V25_RUN:-g25}" "$RUNS23/v23_data" ;;
     views-v22)  # is the predictor specific to the 48 views it was trained at (12 azimuths, 30 degrees apart, at 0 / 15 / 30
       # / 45 degrees)? DATA2's first 20 shapes per category (the same shapes and splits) at 24 of those views
       # (DATAV22 [data/views22]/grid: 12 azimuths at 15 and 30) and at 16 views off them (DATAV22/off: 8 azimuths 45
@@ -1503,7 +1514,7 @@ EOF
       # V24_ITERS [5000], V24_MINUTES [60] at most, two threads; resumes
       [ -f "$RUNS23/v23_data/config.json" ] || { echo "predictor-v24 starts from $RUNS23/v23_data: run predictor-v23 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
-      DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-5000}" "${V24_MINUTES:-60}" 2 ;;
+      DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-4000}" "${V24_MINUTES:-50}" 2 ;;
     val-v24|val-strong-v24|val-side-v24)  # predictor-v24's run against its start, the bundled eighteenth (RUNS23/v23_data),
       # plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
