@@ -1511,7 +1511,7 @@ EOF
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT23/val_${EVAL_NAME#eval_}" "$RUNS23/v23_data" "${bases[@]}" ;;
     predictor-v24)  # the eighteenth predictor (RUNS23/v23_data) trained on DATA40 by the same recipe into RUNS24/v24_data:
-      # V24_ITERS [5000], V24_MINUTES [60] at most, two threads; resumes
+      # V24_ITERS [4000: the nineteenth's 4,000 in 49.4 min], V24_MINUTES [50] at most, two threads; resumes
       [ -f "$RUNS23/v23_data/config.json" ] || { echo "predictor-v24 starts from $RUNS23/v23_data: run predictor-v23 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
       DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-4000}" "${V24_MINUTES:-50}" 2 ;;
