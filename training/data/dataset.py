@@ -151,7 +151,7 @@ class BuildSettings:
     @property
     def grid_size(self) -> int:
         """Views of the full grid: ``num_azimuths`` at each of ``elevations``."""
-        return int(self.num_azimuths) * len(self.elevations)
+        return self.render_settings().num_views
 
     @property
     def shape_views(self) -> int:
@@ -177,7 +177,7 @@ class BuildSettings:
         k = int(self.views_per_shape)
         if k == 0 or k == self.grid_size:
             return None
-        rng = np.random.default_rng([int(self.seed), zlib.crc32(f"{category}/{shape_id}".encode()), 0x5EED])
+        rng = np.random.default_rng([int(self.seed), _shape_hash(category, shape_id), 0x5EED])
         n_az, n_el = int(self.num_azimuths), len(self.elevations)
         if k % n_el == 0:
             picks = [e * n_az + int(a) for e in range(n_el) for a in rng.choice(n_az, k // n_el, replace=False)]
@@ -278,8 +278,13 @@ def check_build_request(out: str | os.PathLike, n_shapes: int, settings: BuildSe
     return cost
 
 
+def _shape_hash(category: str, shape_id: str) -> int:
+    """A stable per-shape number for seeding (CRC32 of ``category/shape_id``)."""
+    return zlib.crc32(f"{category}/{shape_id}".encode())
+
+
 def _view_seed(seed: int, category: str, shape_id: str, view: int) -> list[int]:
-    return [int(seed), zlib.crc32(f"{category}/{shape_id}".encode()), int(view)]
+    return [int(seed), _shape_hash(category, shape_id), int(view)]
 
 
 def render_job(job: Job, settings: BuildSettings) -> dict:
