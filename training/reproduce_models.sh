@@ -122,6 +122,8 @@
 # A lent GPU (gpu_predictor.sh's header: the bundled pair on 600 shapes per category, 4 of the 48 grid views each, in
 #   one call): fetch-gpu-v25 places what came back in RUNS25 [runs/v25], val-*-v25-gpu sets it against the eighteenth
 #   (OUT25 [out/v25]).
+# On the CPU meanwhile: predictor-v24-more trains the nineteenth a second pass over DATA40 (into RUNS24/v24_more),
+#   val-*-v24-more sets it against the nineteenth (OUT25/val_more_*).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1515,6 +1517,17 @@ EOF
       [ -f "$RUNS23/v23_data/config.json" ] || { echo "predictor-v24 starts from $RUNS23/v23_data: run predictor-v23 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
       DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-4000}" "${V24_MINUTES:-50}" 2 ;;
+    predictor-v24-more)  # the nineteenth predictor (RUNS24/v24_data) trained on along a new cosine on DATA40 by the same
+      # recipe into RUNS24/v24_more: 4,000 iterations [V24_MORE_ITERS] saw 0.6 of DATA40's 200,784 views, so a second
+      # pass over them; V24_MORE_MINUTES [50] at most, two threads; resumes. Set against its start by val-*-v24-more
+      [ -f "$RUNS24/v24_data/config.json" ] || { echo "predictor-v24-more starts from $RUNS24/v24_data: run predictor-v24 first" >&2; exit 1; }
+      [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24-more reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
+      DATA20=$DATA40 recipe20 "$RUNS24/v24_data" "$RUNS24/v24_more" "${V24_MORE_ITERS:-4000}" "${V24_MORE_MINUTES:-50}" 2 ;;
+    val-v24-more|val-strong-v24-more|val-side-v24-more)  # predictor-v24-more's run against its start, the bundled
+      # nineteenth (RUNS24/v24_data), plain and +mirror, on DATA2's validation split (OUT25/val_more_*)
+      local c=${1%-more}
+      eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT25/val_more_${EVAL_NAME#eval_}" "$RUNS24/v24_more" "$RUNS24/v24_data" ;;
     val-v24|val-strong-v24|val-side-v24)  # predictor-v24's run against its start, the bundled eighteenth (RUNS23/v23_data),
       # plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
