@@ -20,7 +20,7 @@ from engine.cliutil import one_line_errors, run_guarded
 REGISTRARS = (
     "engine.cli",  # infer, bench engine
     "training.cli.data",  # data, bench data
-    "training.cli.train",  # train, eval, export, import-models
+    "training.cli.train",  # train, eval, export, import-models, average
     "training.cli.bench",  # bench renderer, bench fit
 )
 

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from engine.cliutil import check_output_dir, float_in, int_in, one_line_errors, run_guarded, unit_float
-from engine.errors import SketchmeshError
+from engine.errors import ModelError, SketchmeshError
 from training.cli.bench import voxel_centres_flag
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
@@ -308,6 +308,29 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_average(args: argparse.Namespace) -> int:
+    from training._torch import require_torch
+
+    torch = require_torch()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    from training.loop.average import average_runs
+    from training.loop.checkpoint import check_run_folder
+
+    for run in args.runs:
+        check_run_folder(run)
+    if args.data and not Path(args.data).is_dir():
+        raise ModelError(f"--data {args.data}: dataset folder does not exist")
+    check_output_dir(args.out, "--out")
+    try:
+        report = average_runs(args.runs, args.out, weights=args.weights, bn_samples=args.bn_samples,
+                              data_dir=args.data)
+    except ValueError as exc:  # the run count or --weights
+        raise ModelError(str(exc)) from None
+    print(report.line())
+    return 0
+
+
 _threads = int_in(0, 256)
 
 MAX_VOXEL_RESOLUTION = 256
@@ -315,7 +338,8 @@ MAX_VOXEL_RESOLUTION = 256
 
 
 def register(commands, bench) -> None:
-    """Add ``train``, ``eval`` and ``export`` to the top-level sub-parsers (see :mod:`sketchmesh.cli`)."""
+    """Add ``train``, ``eval``, ``export``, ``import-models`` and ``average`` to the top-level sub-parsers (see
+    :mod:`sketchmesh.cli`)."""
     p = commands.add_parser(
         "train", help="train the normal generator, the mesh predictor, or both jointly",
         description="Train (or resume) a run: normals = pix2pix cGAN sketch -> normal image; mesh = mesh "
@@ -407,8 +431,26 @@ def register(commands, bench) -> None:
     one_line_errors(p)
 
 
+    p = commands.add_parser(
+        "average", help="average the weights of runs of one network (e.g. two learning-rate cycles' ends) into a new run",
+        description="Stochastic weight averaging of RUN folders of the same network: the weighted mean of their "
+        "newest checkpoints' parameters, the batch norms set again from the averaged network's statistics on "
+        "--bn-samples training inputs; fixed buffers must agree. The result (OUT) is a run like any other for "
+        "eval, export and train --init-mesh.",
+    )
+    p.add_argument("runs", metavar="RUN", nargs="+", help="two or more run folders")
+    p.add_argument("--out", required=True, metavar="RUN", help="new run folder for the average")
+    p.add_argument("--weights", type=float, nargs="+", metavar="W", help="one weight per run (default equal)")
+    p.add_argument("--bn-samples", type=int_in(0, 100_000), default=1024, metavar="N",
+                   help="training inputs that set the batch norms (default 1024; 0: average the runs' statistics)")
+    p.add_argument("--data", metavar="DIR", help="dataset for the batch norms (default: the first run's)")
+    p.add_argument("--threads", type=_threads, default=0)
+    p.set_defaults(func=_cmd_average)
+    one_line_errors(p)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Standalone entry point with only these three commands (same error handling as sketchmesh)."""
+    """Standalone entry point with only these commands (same error handling as sketchmesh)."""
     parser = one_line_errors(argparse.ArgumentParser(prog="python -m training.cli.train"))
     parser.add_argument("--debug", action="store_true")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
