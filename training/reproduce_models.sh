@@ -123,7 +123,7 @@
 #   one call): fetch-gpu-v25 places what came back in RUNS25 [runs/v25], val-*-v25-gpu sets it against the eighteenth
 #   (OUT25 [out/v25]).
 # On the CPU meanwhile: predictor-v24-more trains the nineteenth a second pass over DATA40 (into RUNS24/v24_more),
-#   val-*-v24-more sets it against the nineteenth (OUT25/val_more_*).
+#   average-v25 averages the two (RUNS24/v25_swa), val-*-v24-more sets both against the nineteenth (OUT25/val_more_*).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1523,11 +1523,18 @@ EOF
       [ -f "$RUNS24/v24_data/config.json" ] || { echo "predictor-v24-more starts from $RUNS24/v24_data: run predictor-v24 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24-more reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
       DATA20=$DATA40 recipe20 "$RUNS24/v24_data" "$RUNS24/v24_more" "${V24_MORE_ITERS:-4000}" "${V24_MORE_MINUTES:-50}" 2 ;;
+    average-v25)  # the two cycle ends predictor-v24 and predictor-v24-more averaged weight by weight (sketchmesh average,
+      # equal weights, batch norms set from 1,024 of DATA40's generated training inputs) into RUNS24/v25_swa
+      [ -f "$RUNS24/v24_more/config.json" ] || { echo "average-v25 needs $RUNS24/v24_more: run predictor-v24-more first" >&2; exit 1; }
+      [ -f "$RUNS24/v25_swa/config.json" ] || \
+        sketchmesh average "$RUNS24/v24_data" "$RUNS24/v24_more" --out "$RUNS24/v25_swa" --bn-samples 1024 --threads 2 ;;
     val-v24-more|val-strong-v24-more|val-side-v24-more)  # predictor-v24-more's run against its start, the bundled
-      # nineteenth (RUNS24/v24_data), plain and +mirror, on DATA2's validation split (OUT25/val_more_*)
-      local c=${1%-more}
+      # nineteenth (RUNS24/v24_data), and their average (RUNS24/v25_swa, average-v25) when it is there, plain and +mirror,
+      # on DATA2's validation split (OUT25/val_more_*)
+      local c=${1%-more} runs=("$RUNS24/v24_more" "$RUNS24/v24_data")
+      [ -f "$RUNS24/v25_swa/config.json" ] && runs+=("$RUNS24/v25_swa")
       eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$OUT25/val_more_${EVAL_NAME#eval_}" "$RUNS24/v24_more" "$RUNS24/v24_data" ;;
+      eval_against val "$OUT25/val_more_${EVAL_NAME#eval_}" "${runs[@]}" ;;
     val-v24|val-strong-v24|val-side-v24)  # predictor-v24's run against its start, the bundled eighteenth (RUNS23/v23_data),
       # plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
