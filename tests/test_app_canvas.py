@@ -515,3 +515,68 @@ def test_autosave_writes_off_the_gui_thread_and_discard_wins_over_a_queued_write
     saver.flush()
     saver.discard()  # queued after the write: the file is gone once both ran
     assert saver.wait() and not saver.has_recovery()
+
+
+def _render_from_scratch(strokes, background, canvas_size, size) -> np.ndarray:
+    """Everything painted in one QPainter pass on a fresh page: what render_ink drew before it cached."""
+    from PySide6.QtGui import QColor, QPainter
+
+    from app.canvas import paint_background, paint_stroke, qimage_to_ink
+
+    img = QImage(size[0], size[1], QImage.Format.Format_Grayscale8)
+    img.fill(QColor(255, 255, 255))
+    p = QPainter(img)
+    p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+    p.scale(size[0] / canvas_size[0], size[1] / canvas_size[1])
+    if background is not None:
+        paint_background(p, background, QColor(0, 0, 0))
+    for s in strokes:
+        paint_stroke(p, s, QColor(0, 0, 0))
+    p.end()
+    return qimage_to_ink(img)
+
+
+def test_render_ink_paints_only_what_changed_with_the_pixels_of_a_full_render(qapp):
+    """New strokes, a growing live stroke, undo, an erase (new stroke objects), another layer and another size:
+    every render equals painting everything from scratch, bit for bit, and the incremental ones paint only the
+    new strokes (counted)."""
+    import app.canvas as canvas_module
+    from app.canvas import render_ink
+
+    rng = np.random.default_rng(5)
+    ink = (rng.random((40, 50)) > 0.8).astype(np.float32)
+    layer = BackgroundLayer(ink, (30.0, 20.0, 170.5, 120.25))
+    other = BackgroundLayer(1.0 - ink, (10.0, 10.0, 90.0, 70.0))
+    s = [make_stroke(rng.uniform(10, 230, (6, 2)), width=2.0 + k) for k in range(5)]
+    live_a, live_b = make_stroke(rng.uniform(10, 230, (3, 2))), make_stroke(rng.uniform(10, 230, (7, 2)))
+    erased = [make_stroke(st.points[:3], st.width) for st in s[:3]]
+    painted = []
+    original = canvas_module._paint_strokes
+    canvas_module._paint_strokes = lambda img, strokes, scale: (painted.append(len(strokes)), original(img, strokes, scale))
+    try:
+        sequence = [
+            ((s[0],), layer, (300, 240), (450, 360), None),
+            ((s[0], s[1]), layer, (300, 240), (450, 360), 1),  # a new stroke: one painted
+            ((s[0], s[1], live_a), layer, (300, 240), (450, 360), 1),
+            ((s[0], s[1], live_b), layer, (300, 240), (450, 360), 1),  # the live stroke grew: still one
+            ((s[0], s[1], s[2], s[3]), layer, (300, 240), (450, 360), None),
+            ((s[0], s[1], s[2]), layer, (300, 240), (450, 360), 0),  # undo of the last: nothing painted
+            ((s[0], s[1], s[2], s[4]), layer, (300, 240), (450, 360), 1),
+            (tuple(erased), layer, (300, 240), (450, 360), None),  # erase: other strokes, from the page
+            (tuple(erased), other, (300, 240), (450, 360), None),  # another layer
+            (tuple(erased), None, (300, 240), (450, 360), None),  # no layer
+            (tuple(erased), None, (300, 240), (300, 240), None),  # another size
+            ((), layer, (300, 240), (450, 360), 0),
+        ]
+        for k, (strokes, background, canvas_size, size, expect_painted) in enumerate(sequence):
+            painted.clear()
+            got = render_ink(strokes, background, canvas_size, size)
+            want = _render_from_scratch(strokes, background, canvas_size, size)
+            assert got.shape == (size[1], size[0])
+            assert np.array_equal(got, want), f"render {k} differs from a full render"
+            if expect_painted is not None:
+                assert sum(painted) == expect_painted, f"render {k} painted {painted}"
+    finally:
+        canvas_module._paint_strokes = original
+    blank = render_ink((), None, (100, 80), (100, 80))
+    assert blank.shape == (80, 100) and float(blank.max()) == 0.0
