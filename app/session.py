@@ -17,7 +17,9 @@ What it measures (written to the report, see :func:`build_report`):
 * ``stroke_latency_ms``: per stroke, pen up to the mesh of the finished drawing on screen
   (debounce + queueing + inference + upload), in stroke order.
 * ``ui_steps_ms``: the work the UI thread still does per result (``MeshViewport.step_ms``),
-  measured where it runs; ``render_thread_ms``: VTK render + read-back on the render thread.
+  measured where it runs; ``render_thread_ms``: VTK render + read-back on the render thread;
+  ``composite_ms``: the worker's render of the canvas composite (an opened sketch is a
+  background layer under the strokes), which holds the GIL while QPainter paints.
 
 The exported mesh is written beside the report (``REPORT.glb`` for ``REPORT.json``).
 """
@@ -425,6 +427,7 @@ def build_report(session: ScriptedSession, *, sketch: str | None, models: str, d
         "ui_thread_cpu_s": round(session.ui_cpu_s, 2),
         "ui_steps_ms": ui_steps,
         "render_thread_ms": _percentiles(getattr(vp, "render_ms", [])),
+        "composite_ms": _percentiles(list(session.window.controller.worker.composite_ms)),
         "strokes": log.strokes_drawn,
         "undo": log.undos,
         "redo": log.redos,
@@ -460,6 +463,10 @@ def format_report(r: dict) -> str:
     rt = r["render_thread_ms"]
     if rt["count"]:
         lines.append(f"render thread, VTK render + read-back: p50 {rt['p50']:.1f} ms  max {rt['max']:.1f} ms  ({rt['count']} frames)")
+    cm = r.get("composite_ms", {"count": 0})
+    if cm["count"]:
+        lines.append(f"worker, canvas composite (background + strokes): p50 {cm['p50']:.1f} ms  max {cm['max']:.1f} ms  "
+                     f"({cm['count']} renders)")
     if r["worst_lags"]:
         lines.append("worst stalls: " + ", ".join(f"{w['lag_ms']:.0f} ms ({w['phase']})" for w in r["worst_lags"][:5]))
     if r["error"]:

@@ -214,6 +214,9 @@ class InferenceWorker(QObject):
         """When set, each result carries :class:`Thumbnails` of this side (set before starting)."""
         self.thread_ids: set[int] = set()
         """Threads ``predict`` ran on (tests check it never is the GUI thread)."""
+        self.composite_ms: list[float] = []
+        """Wall time of each canvas composite rendered here (a background layer under the strokes), for the
+        session report; appended on this thread, read after the session."""
 
     def note_latest(self, request_id: int) -> None:
         """Called from the GUI thread: requests older than this are stale."""
@@ -246,7 +249,13 @@ class InferenceWorker(QObject):
             if isinstance(sketch, (CanvasRaster, CanvasComposite)):
                 from engine.preprocess import preprocess_raster  # noqa: PLC0415
 
-                sketch = preprocess_raster(sketch.ink if isinstance(sketch, CanvasRaster) else sketch.render())
+                if isinstance(sketch, CanvasComposite):
+                    t0 = time.perf_counter()
+                    ink = sketch.render()
+                    self.composite_ms.append((time.perf_counter() - t0) * 1e3)
+                else:
+                    ink = sketch.ink
+                sketch = preprocess_raster(ink)
             prediction = engine.predict(sketch, want_normals=True)
             thumbs = None if self.thumbnail_size is None else make_thumbnails(prediction, self.thumbnail_size)
         except SketchmeshError as exc:

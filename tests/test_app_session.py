@@ -64,6 +64,9 @@ def _check_report(r: dict, plan: SessionPlan, export: Path) -> None:
     _check_figures(r["stroke_latency_summary_ms"], ("p50", "p95", "max"))
     assert r["meshes_shown"] >= plan.strokes + 1  # the opened sketch, then each stroke (at least)
     assert r["engine_ms"]["count"] >= 1 and r["render_thread_ms"]["count"] >= 1
+    if r["sketch"] is not None:  # the opened sketch is a background layer: every prediction renders a composite
+        _check_figures(r["composite_ms"], ("p50", "p99", "max"))
+        assert r["composite_ms"]["count"] >= plan.strokes and "canvas composite" in format_report(r)
     assert set(r["ui_steps_ms"]) == {"mesh_upload", "frame"}
     assert 0 < r["ui_thread_cpu_s"] < r["duration_s"]
     assert r["export"] == str(export) and r["export_bytes"] == export.stat().st_size > 0

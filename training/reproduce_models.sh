@@ -1650,6 +1650,14 @@ EOF
       # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
       # it times)
       candidate "$1"; play_sessions "$CAND_OUT/session" ;;
+    session-load)  # play_sessions with the bundled pair while two busy loops keep both cores loaded (another job on the
+      # artist's laptop), into SESSION_LOAD_OUT [OUT25/session_load]: the UI lag under load, and the worker's
+      # composite renders (composite_ms: the opened sketch is a background layer under the strokes)
+      local busy=()
+      for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
+      trap 'kill "${busy[@]}" 2>/dev/null' EXIT
+      play_sessions "${SESSION_LOAD_OUT:-$OUT25/session_load}"
+      kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
                eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 \
