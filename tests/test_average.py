@@ -1,4 +1,4 @@
-"""Weight averaging of runs (training.loop.average, `sketchmesh average`).
+"""Weight averaging of runs (training.export.average, `sketchmesh average`).
 
 Expectations are computed independently of the averaging code: the weighted mean of the two runs'
 tensors by hand, the first batch norm's input captured by a forward hook on the averaged network in
@@ -17,8 +17,8 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from engine.errors import ModelError  # noqa: E402
+from training.export.average import average_runs  # noqa: E402
 from training.export.from_onnx import calibration_inputs  # noqa: E402
-from training.loop.average import average_runs  # noqa: E402
 from training.loop.config import TrainConfig  # noqa: E402
 from training.loop.trainer import Trainer, load_run  # noqa: E402
 

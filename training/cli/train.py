@@ -314,7 +314,7 @@ def _cmd_average(args: argparse.Namespace) -> int:
     torch = require_torch()
     if args.threads:
         torch.set_num_threads(args.threads)
-    from training.loop.average import average_runs
+    from training.export.average import average_runs
     from training.loop.checkpoint import check_run_folder
 
     for run in args.runs:
