@@ -14,8 +14,32 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import sys
 
-from engine.cliutil import one_line_errors, run_guarded
+GUI_VALUE_OPTIONS = ("--open", "--screenshot", "--models", "--report")
+"""The GUI's options that take a value (app.main.add_gui_arguments): a run whose other words are all options is the GUI."""
+
+
+def is_gui_run(argv: list[str]) -> bool:
+    """Whether ``sketchmesh ARGV`` starts the desktop app (no subcommand), judged before argparse and numpy load."""
+    words = iter(argv)
+    for word in words:
+        if word in GUI_VALUE_OPTIONS:
+            next(words, None)
+        elif not word.startswith("-"):
+            return False
+    return True
+
+
+if is_gui_run(sys.argv[1:]):
+    # One OpenBLAS thread in the app, set before numpy loads its OpenBLAS (which reads it once): the engine's matrices
+    # are small, and OpenBLAS's own threads, which spin while they wait, stalled the UI thread for 231-640 ms when
+    # other processes kept both cores busy (at most 46-91 ms with one thread, the engine no slower idle; README, "The
+    # app under the pen", session-load). A value the user set wins.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from engine.cliutil import one_line_errors, run_guarded  # noqa: E402
 
 REGISTRARS = (
     "engine.cli",  # infer, bench engine

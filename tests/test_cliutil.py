@@ -2,6 +2,7 @@
 
 import argparse
 import math
+import os
 
 import pytest
 
@@ -96,3 +97,39 @@ def test_run_guarded_puts_a_multi_line_message_on_one_line(capsys, monkeypatch):
     exc = ModelError("weights do not fit: Error(s) in loading state_dict:\n\tsize mismatch for w")
     assert run_guarded(_raise(exc), argparse.Namespace(debug=False)) == 2
     assert capsys.readouterr().err == "sketchmesh: error: weights do not fit: Error(s) in loading state_dict: size mismatch for w\n"
+
+
+@pytest.mark.parametrize("argv, gui", [
+    ([], True),
+    (["--open", "sketch.png"], True),
+    (["--report", "r.json", "--open", "infer", "--debug"], True),  # "infer" is --open's value here, not a command
+    (["--models", "eval"], True),
+    (["infer", "x.png", "-o", "y.obj"], False),
+    (["--debug", "bench", "engine"], False),
+    (["--models", "m", "eval", "--data", "d"], False),
+])
+def test_is_gui_run_tells_the_app_from_the_subcommands(argv, gui):
+    from sketchmesh.cli import is_gui_run
+
+    assert is_gui_run(argv) is gui
+
+
+@pytest.mark.parametrize("argv, env, expect", [
+    (["--open", "s.png"], None, "1"),  # the app: one OpenBLAS thread
+    (["infer", "s.png"], None, "unset"),  # a command: numpy's default
+    (["--open", "s.png"], "3", "3"),  # the user's own value wins
+])
+def test_the_app_sets_one_openblas_thread_before_numpy_loads(argv, env, expect):
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.argv = ['sketchmesh'] + sys.argv[1:]\n"
+            "import sketchmesh.cli, os\n"
+            "assert 'numpy' not in sys.modules, 'numpy loaded before the thread count was set'\n"
+            "print(os.environ.get('OPENBLAS_NUM_THREADS', 'unset'))\n")
+    environ = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if env is not None:
+        environ["OPENBLAS_NUM_THREADS"] = env
+    out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, env=environ, check=False)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == expect
