@@ -125,7 +125,8 @@
 # On the CPU meanwhile: predictor-v24-more trains the nineteenth a second pass over DATA40 (into RUNS24/v24_more),
 #   average-v25 averages the two (RUNS24/v25_swa), val-*-v24-more sets both against the nineteenth (OUT25/val_more_*).
 #   The twentieth candidate, chosen there (out/v25/choice.txt: v24_more): all-v25, cost-both-v25, session-v25, logs-v25
-#   and overfit-v25 (its retrieval floor is retrieval-*-v24's: the same data).
+#   and overfit-v25 (its retrieval floor is retrieval-*-v24's: the same data). predictor-v25-more trains it a third pass
+#   (RUNS24/v25_more), val-*-v25-more sets that against it (OUT25/val_third_*).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1528,6 +1529,16 @@ EOF
       [ -f "$RUNS24/v24_data/config.json" ] || { echo "predictor-v24-more starts from $RUNS24/v24_data: run predictor-v24 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24-more reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
       DATA20=$DATA40 recipe20 "$RUNS24/v24_data" "$RUNS24/v24_more" "${V24_MORE_ITERS:-4000}" "${V24_MORE_MINUTES:-50}" 2 ;;
+    predictor-v25-more)  # the twentieth predictor (RUNS24/v24_more) trained a third pass along a new cosine on DATA40 by the
+      # same recipe into RUNS24/v25_more: does a third pass over the 4,160 shapes still pay? V25_MORE_ITERS [4000],
+      # V25_MORE_MINUTES [50] at most, two threads; resumes. Set against its start by val-*-v25-more
+      [ -f "$RUNS24/v24_more/config.json" ] || { echo "predictor-v25-more starts from $RUNS24/v24_more: run predictor-v24-more first" >&2; exit 1; }
+      DATA20=$DATA40 recipe20 "$RUNS24/v24_more" "$RUNS24/v25_more" "${V25_MORE_ITERS:-4000}" "${V25_MORE_MINUTES:-50}" 2 ;;
+    val-v25-more|val-strong-v25-more|val-side-v25-more)  # predictor-v25-more's run against the bundled twentieth
+      # (RUNS24/v24_more), plain and +mirror, on DATA2's validation split (OUT25/val_third_*)
+      local c=${1%-more}
+      eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT25/val_third_${EVAL_NAME#eval_}" "$RUNS24/v25_more" "$RUNS24/v24_more" ;;
     average-v25)  # the two cycle ends predictor-v24 and predictor-v24-more averaged weight by weight (sketchmesh average,
       # equal weights, batch norms set from 1,024 of DATA40's generated training inputs) into RUNS24/v25_swa
       [ -f "$RUNS24/v24_more/config.json" ] || { echo "average-v25 needs $RUNS24/v24_more: run predictor-v24-more first" >&2; exit 1; }
