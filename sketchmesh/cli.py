@@ -17,6 +17,8 @@ import importlib
 import os
 import sys
 
+from engine.cliutil import one_line_errors, run_guarded
+
 GUI_VALUE_OPTIONS = ("--open", "--screenshot", "--models", "--report")
 """The GUI's options that take a value (app.main.add_gui_arguments): a run whose other words are all options is the GUI."""
 
@@ -32,14 +34,20 @@ def is_gui_run(argv: list[str]) -> bool:
     return True
 
 
-if is_gui_run(sys.argv[1:]):
-    # One OpenBLAS thread in the app, set before numpy loads its OpenBLAS (which reads it once): the engine's matrices
-    # are small, and OpenBLAS's own threads, which spin while they wait, stalled the UI thread for 231-640 ms when
-    # other processes kept both cores busy (at most 46-91 ms with one thread, the engine no slower idle; README, "The
-    # app under the pen", session-load). A value the user set wins.
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+def limit_blas_threads_for_the_gui(argv: list[str]) -> bool:
+    """One OpenBLAS thread when ``sketchmesh ARGV`` starts the app and numpy is not loaded yet (OpenBLAS reads
+    ``OPENBLAS_NUM_THREADS`` once, when numpy loads it); returns whether it set it.
 
-from engine.cliutil import one_line_errors, run_guarded  # noqa: E402
+    The engine's matrices are small, and OpenBLAS's own threads, which spin while they wait, stalled the UI thread
+    for 231-640 ms when other processes kept both cores busy (57-106 ms with one thread, the engine no slower idle;
+    README, "The app under the pen", session-load). A value the user set wins. Nothing is set in a process that
+    already loaded numpy (a test calling :func:`main`), so the setting never leaks into its child processes.
+    """
+    if "numpy" in sys.modules or "OPENBLAS_NUM_THREADS" in os.environ or not is_gui_run(argv):
+        return False
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    return True
+
 
 REGISTRARS = (
     "engine.cli",  # infer, bench engine
@@ -76,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    limit_blas_threads_for_the_gui(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:

@@ -3,6 +3,8 @@
 import argparse
 import math
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -120,12 +122,11 @@ def test_is_gui_run_tells_the_app_from_the_subcommands(argv, gui):
     (["--open", "s.png"], "3", "3"),  # the user's own value wins
 ])
 def test_the_app_sets_one_openblas_thread_before_numpy_loads(argv, env, expect):
-    import subprocess
-    import sys
-
-    code = ("import sys; sys.argv = ['sketchmesh'] + sys.argv[1:]\n"
-            "import sketchmesh.cli, os\n"
-            "assert 'numpy' not in sys.modules, 'numpy loaded before the thread count was set'\n"
+    code = ("import sys\n"
+            "from sketchmesh.cli import limit_blas_threads_for_the_gui\n"
+            "assert 'numpy' not in sys.modules, 'numpy loaded before the thread count could be set'\n"
+            "limit_blas_threads_for_the_gui(sys.argv[1:])\n"
+            "import os\n"
             "print(os.environ.get('OPENBLAS_NUM_THREADS', 'unset'))\n")
     environ = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
     if env is not None:
@@ -133,3 +134,14 @@ def test_the_app_sets_one_openblas_thread_before_numpy_loads(argv, env, expect):
     out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, env=environ, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == expect
+
+
+def test_a_process_with_numpy_loaded_is_left_alone(monkeypatch):
+    """A test (or any caller) that already loaded numpy must not pass the setting on to its child processes."""
+    import numpy  # noqa: F401
+
+    from sketchmesh.cli import limit_blas_threads_for_the_gui
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    assert limit_blas_threads_for_the_gui(["--open", "s.png"]) is False
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
