@@ -342,9 +342,9 @@ class _RenderCache:
     """What :func:`render_ink` painted last, so the next call paints only what changed.
 
     The worker renders the composite for every prediction, and PySide6 holds Python's GIL through
-    each QPainter call, so the UI thread waits on the longest one. Painting every stroke again took
-    80 ms per render (p50 of a scripted session on two cores shared with a training job; 9-10 ms
-    with this cache, README "The app under the pen"). Kept here: the page with the background
+    each QPainter call, so the UI thread waits on the longest one; painting every stroke again grew
+    with the drawing (README "The app under the pen": 10.5-12.7 ms p50 per render with this cache
+    on two busy cores, the session report's ``composite_ms``). Kept here: the page with the background
     painted in (per layer and size), and the last render with and without its last stroke. A
     render whose strokes extend the last one's (a new stroke), or replace only its last stroke
     (the live stroke growing), starts from a copy of those; anything else (undo further back, an
@@ -375,30 +375,32 @@ class _RenderCache:
             self._page = (key, background, img)
         return img
 
-    def start(self, key: tuple, background: BackgroundLayer | None, strokes: tuple[Stroke, ...]) -> tuple[QImage | None, int]:
-        """(a cached image to start from, how many of ``strokes`` it holds) or (None, 0)."""
+    def _shared(self, key: tuple, background: BackgroundLayer | None, strokes: tuple[Stroke, ...]) -> tuple:
+        """(the last render's entry, how many leading strokes it shares with ``strokes``), or (None, 0)."""
         with self._lock:
             last = self._last
         if last is None or last[0] != key or last[1] is not background:
             return None, 0
-        old = last[2]
         k = 0
-        for a, b in zip(old, strokes):
+        for a, b in zip(last[2], strokes):
             if a is not b:
                 break
             k += 1
-        if k == len(old):
+        return last, k
+
+    def start(self, key: tuple, background: BackgroundLayer | None, strokes: tuple[Stroke, ...]) -> tuple[QImage | None, int]:
+        """(a cached image to start from, how many of ``strokes`` it holds) or (None, 0)."""
+        last, k = self._shared(key, background, strokes)
+        if last is not None and k == len(last[2]):
             return last[3], k
-        if k == len(old) - 1 and last[4] is not None:
+        if last is not None and k == len(last[2]) - 1 and last[4] is not None:
             return last[4], k
         return None, 0
 
     def holds(self, key: tuple, background: BackgroundLayer | None, strokes: tuple[Stroke, ...]) -> bool:
         """Whether the last render is of exactly these strokes (its entry is worth keeping)."""
-        with self._lock:
-            last = self._last
-        return last is not None and last[0] == key and last[1] is background and len(last[2]) == len(strokes) \
-            and all(a is b for a, b in zip(last[2], strokes))
+        last, k = self._shared(key, background, strokes)
+        return last is not None and k == len(last[2]) == len(strokes)
 
     def store(self, key: tuple, background: BackgroundLayer | None, strokes: tuple[Stroke, ...], full: QImage,
               but_last: QImage | None) -> None:

@@ -30,6 +30,7 @@ import sys
 import threading
 import time
 import weakref
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -53,6 +54,9 @@ inference takes the rest (0 turns it off)."""
 
 SHUTDOWN_WAIT_MS = 10_000
 """How long closing waits for an inference in progress to finish."""
+
+COMPOSITE_TIMES_KEPT = 10_000
+"""Canvas-composite render times the worker keeps for the session report (the newest; a long app run stays small)."""
 
 SketchInput = object  # list[Stroke] | (256, 256) float32 raster | CanvasRaster | CanvasComposite | path
 
@@ -214,8 +218,8 @@ class InferenceWorker(QObject):
         """When set, each result carries :class:`Thumbnails` of this side (set before starting)."""
         self.thread_ids: set[int] = set()
         """Threads ``predict`` ran on (tests check it never is the GUI thread)."""
-        self.composite_ms: list[float] = []
-        """Wall time of each canvas composite rendered here (a background layer under the strokes), for the
+        self.composite_ms: deque[float] = deque(maxlen=COMPOSITE_TIMES_KEPT)
+        """Wall time of the latest canvas composites rendered here (a background layer under the strokes), for the
         session report; appended on this thread, read after the session."""
 
     def note_latest(self, request_id: int) -> None:

@@ -294,6 +294,12 @@ more_pass() {  # predictor-vN-more's runs in RUNS20 (N = $1: 20, 21 or 22): MORE
   return 0
 }
 
+pass40() {  # predictor-vN-more's runs on DATA40 in RUNS24 (N = $1: 24 or 25): PASS_FROM its start, PASS_TO its run
+  PASS_FROM=v24_data PASS_TO=v24_more
+  [ "$1" = 25 ] && PASS_FROM=v24_more PASS_TO=v25_more
+  return 0
+}
+
 candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19, v20, v21, v22, v23, v24 or v25): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME), CAND_RETRIEVAL the dataset whose train split it saw
@@ -1523,34 +1529,29 @@ EOF
       [ -f "$RUNS23/v23_data/config.json" ] || { echo "predictor-v24 starts from $RUNS23/v23_data: run predictor-v23 first" >&2; exit 1; }
       [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
       DATA20=$DATA40 recipe20 "$RUNS23/v23_data" "$RUNS24/v24_data" "${V24_ITERS:-4000}" "${V24_MINUTES:-50}" 2 ;;
-    predictor-v24-more)  # the nineteenth predictor (RUNS24/v24_data) trained on along a new cosine on DATA40 by the same
-      # recipe into RUNS24/v24_more: 4,000 iterations [V24_MORE_ITERS] saw 0.6 of DATA40's 200,784 views, so a second
-      # pass over them; V24_MORE_MINUTES [50] at most, two threads; resumes. Set against its start by val-*-v24-more
-      [ -f "$RUNS24/v24_data/config.json" ] || { echo "predictor-v24-more starts from $RUNS24/v24_data: run predictor-v24 first" >&2; exit 1; }
-      [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "predictor-v24-more reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
-      DATA20=$DATA40 recipe20 "$RUNS24/v24_data" "$RUNS24/v24_more" "${V24_MORE_ITERS:-4000}" "${V24_MORE_MINUTES:-50}" 2 ;;
-    predictor-v25-more)  # the twentieth predictor (RUNS24/v24_more) trained a third pass along a new cosine on DATA40 by the
-      # same recipe into RUNS24/v25_more: does a third pass over the 4,160 shapes still pay? V25_MORE_ITERS [4000],
-      # V25_MORE_MINUTES [50] at most, two threads; resumes. Set against its start by val-*-v25-more
-      [ -f "$RUNS24/v24_more/config.json" ] || { echo "predictor-v25-more starts from $RUNS24/v24_more: run predictor-v24-more first" >&2; exit 1; }
-      DATA20=$DATA40 recipe20 "$RUNS24/v24_more" "$RUNS24/v25_more" "${V25_MORE_ITERS:-4000}" "${V25_MORE_MINUTES:-50}" 2 ;;
-    val-v25-more|val-strong-v25-more|val-side-v25-more)  # predictor-v25-more's run against the bundled twentieth
-      # (RUNS24/v24_more), plain and +mirror, on DATA2's validation split (OUT25/val_third_*)
-      local c=${1%-more}
-      eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$OUT25/val_third_${EVAL_NAME#eval_}" "$RUNS24/v25_more" "$RUNS24/v24_more" ;;
+    predictor-v24-more|predictor-v25-more)  # another pass along a new cosine on DATA40 by the same recipe: the nineteenth
+      # (RUNS24/v24_data, whose 4,000 iterations saw 0.6 of DATA40's 200,784 views) into RUNS24/v24_more, and that, the
+      # twentieth, a third time into RUNS24/v25_more; V2X_MORE_ITERS [4000], V2X_MORE_MINUTES [50] at most, two threads;
+      # resumes. Set against its start by val-*-v2X-more
+      local n=${1#predictor-v}; n=${n%-more}; pass40 "$n"
+      local iters=V${n}_MORE_ITERS minutes=V${n}_MORE_MINUTES
+      [ -f "$RUNS24/$PASS_FROM/config.json" ] || { echo "$1 starts from $RUNS24/$PASS_FROM: train it first" >&2; exit 1; }
+      [ -f "$DATA40/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA40: run data-v24 generated-v24 generated-mirror-v24 first" >&2; exit 1; }
+      DATA20=$DATA40 recipe20 "$RUNS24/$PASS_FROM" "$RUNS24/$PASS_TO" "${!iters:-4000}" "${!minutes:-50}" 2 ;;
     average-v25)  # the two cycle ends predictor-v24 and predictor-v24-more averaged weight by weight (sketchmesh average,
       # equal weights, batch norms set from 1,024 of DATA40's generated training inputs) into RUNS24/v25_swa
       [ -f "$RUNS24/v24_more/config.json" ] || { echo "average-v25 needs $RUNS24/v24_more: run predictor-v24-more first" >&2; exit 1; }
       [ -f "$RUNS24/v25_swa/config.json" ] || \
         sketchmesh average "$RUNS24/v24_data" "$RUNS24/v24_more" --out "$RUNS24/v25_swa" --bn-samples 1024 --threads 2 ;;
-    val-v24-more|val-strong-v24-more|val-side-v24-more)  # predictor-v24-more's run against its start, the bundled
-      # nineteenth (RUNS24/v24_data), and their average (RUNS24/v25_swa, average-v25) when it is there, plain and +mirror,
-      # on DATA2's validation split (OUT25/val_more_*)
-      local c=${1%-more} runs=("$RUNS24/v24_more" "$RUNS24/v24_data")
-      [ -f "$RUNS24/v25_swa/config.json" ] && runs+=("$RUNS24/v25_swa")
+    val-v24-more|val-strong-v24-more|val-side-v24-more|val-v25-more|val-strong-v25-more|val-side-v25-more)  # a
+      # predictor-v2X-more run against its start, plain and +mirror, on DATA2's validation split: the second pass against
+      # the nineteenth, with their weight average (RUNS24/v25_swa, average-v25) when it is there (OUT25/val_more_*); the
+      # third against the twentieth (OUT25/val_third_*)
+      local c=${1%-more} n=${1##*-v}; n=${n%-more}; pass40 "$n"
+      local runs=("$RUNS24/$PASS_TO" "$RUNS24/$PASS_FROM") out=$OUT25/val_more
+      if [ "$n" = 24 ]; then [ -f "$RUNS24/v25_swa/config.json" ] && runs+=("$RUNS24/v25_swa"); else out=$OUT25/val_third; fi
       eval_case "${c/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      eval_against val "$OUT25/val_more_${EVAL_NAME#eval_}" "${runs[@]}" ;;
+      eval_against val "${out}_${EVAL_NAME#eval_}" "${runs[@]}" ;;
     val-v24|val-strong-v24|val-side-v24)  # predictor-v24's run against its start, the bundled eighteenth (RUNS23/v23_data),
       # plain and +mirror, on DATA2's validation split
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)

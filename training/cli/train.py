@@ -315,10 +315,7 @@ def _cmd_average(args: argparse.Namespace) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     from training.export.average import average_runs
-    from training.loop.checkpoint import check_run_folder
 
-    for run in args.runs:
-        check_run_folder(run)
     if args.data and not Path(args.data).is_dir():
         raise ModelError(f"--data {args.data}: dataset folder does not exist")
     check_output_dir(args.out, "--out")
@@ -429,7 +426,6 @@ def register(commands, bench) -> None:
     p.add_argument("--threads", type=_threads, default=0)
     p.set_defaults(func=_cmd_import)
     one_line_errors(p)
-
 
     p = commands.add_parser(
         "average", help="average the weights of runs of one network (e.g. two learning-rate cycles' ends) into a new run",
