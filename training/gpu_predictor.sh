@@ -125,6 +125,13 @@
 #     /tmp), and the machine was handed back idle before a second call. Check `df -h .` here before a GPU call.
 #     Rerun as is on the next lent GPU, then GPU_FILES=<files_at> bash training/reproduce_models.sh fetch-gpu-v25
 #     val-v25-gpu val-strong-v25-gpu val-side-v25-gpu (against the eighteenth, out/v25).
+#   Rerun (2026-11-27, H100, two calls on one warm machine, 13.5 minutes of device time held) from the bundled twentieth
+#   pair, nothing carried but .whl: the call above as is (g25: the same split md5; 7,800 shapes in 186 s, the generated
+#   sets in 76 s each, import at 381 s, calibration 4.5 it/s, 519 iterations at batch 512 in 116 s), then on the warm
+#   machine from its end, the data reused (g25b: 560 iterations in 137 s; 1,079 in all, 552,000 samples):
+#     SHAPES=600 VIEWS_PER_SHAPE=4 INPUTS=generated ARCH=... EXTRA="--mirror-consistency 50" SPECS="g25b 512 2e-4" CAL=0 \
+#       ITERS=560 WARMUP=20 END=215 GEN_MODELS=assets/models bash training/gpu_predictor.sh runs/gpu10/g25
+#   then fetch-gpu-v25 with each call's files, val-*-v25-gpu (against the twentieth).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
