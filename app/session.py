@@ -20,6 +20,9 @@ What it measures (written to the report, see :func:`build_report`):
   measured where it runs; ``render_thread_ms``: VTK render + read-back on the render thread;
   ``composite_ms``: the worker's render of the canvas composite (an opened sketch is a
   background layer under the strokes), which holds the GIL while QPainter paints.
+* ``engine_ms``: the engine's own time per prediction (the sum of its stages), and
+  ``engine_stages_ms``: each stage of it (``engine.pipeline.STAGES``), to find the one that
+  slows when the app shares the cores with other work.
 
 The exported mesh is written beside the report (``REPORT.glb`` for ``REPORT.json``).
 """
@@ -227,6 +230,7 @@ class SessionLog:
     stroke_latency_ms: list[float] = field(default_factory=list)
     pen_delay_ms: list[float] = field(default_factory=list)
     engine_ms: list[float] = field(default_factory=list)
+    engine_stages_ms: dict[str, list[float]] = field(default_factory=dict)
     meshes_shown: int = 0
     failures: list[str] = field(default_factory=list)
     strokes_drawn: int = 0
@@ -270,6 +274,8 @@ class ScriptedSession:
         pred = self.window.last_prediction
         if pred is not None and not getattr(pred, "cached", False):
             self.log.engine_ms.append(float(sum(pred.timings_ms.values())))
+            for stage, ms in pred.timings_ms.items():
+                self.log.engine_stages_ms.setdefault(stage, []).append(float(ms))
 
     def _on_failed(self, rid: int, message: str) -> None:
         self._failed_ids.append(rid)
@@ -424,6 +430,7 @@ def build_report(session: ScriptedSession, *, sketch: str | None, models: str, d
         "stroke_latency_ms": [round(v, 2) for v in log.stroke_latency_ms],
         "stroke_latency_summary_ms": _percentiles(log.stroke_latency_ms, (50, 95)),
         "engine_ms": _percentiles(log.engine_ms, (50, 95)),
+        "engine_stages_ms": {stage: _percentiles(v, (50, 95)) for stage, v in log.engine_stages_ms.items()},
         "ui_thread_cpu_s": round(session.ui_cpu_s, 2),
         "ui_steps_ms": ui_steps,
         "render_thread_ms": _percentiles(getattr(vp, "render_ms", [])),
@@ -458,6 +465,9 @@ def format_report(r: dict) -> str:
         f"pen up -> mesh on screen, per stroke: p50 {lat['p50']:.0f} ms  p95 {lat['p95']:.0f} ms  max {lat['max']:.0f} ms "
         f"(engine alone p50 {eng['p50']:.1f} ms)",
     ]
+    stages = r.get("engine_stages_ms", {})
+    if stages:
+        lines.append("engine stages, p50: " + "  ".join(f"{k} {v['p50']:.1f}" for k, v in stages.items()) + " ms")
     for name, s in r["ui_steps_ms"].items():
         lines.append(f"UI thread, {name}: p50 {s['p50']:.1f} ms  max {s['max']:.1f} ms  ({s['count']} times)")
     rt = r["render_thread_ms"]

@@ -23,6 +23,7 @@ from PySide6.QtGui import QImage
 from app.canvas import guide_rect
 from app.session import LAG_TARGETS_MS, SessionPlan, eraser_paths, format_report, run_session, stroke_paths
 from app.viewport import VIEW_PRESETS
+from engine.pipeline import STAGES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -64,6 +65,13 @@ def _check_report(r: dict, plan: SessionPlan, export: Path) -> None:
     _check_figures(r["stroke_latency_summary_ms"], ("p50", "p95", "max"))
     assert r["meshes_shown"] >= plan.strokes + 1  # the opened sketch, then each stroke (at least)
     assert r["engine_ms"]["count"] >= 1 and r["render_thread_ms"]["count"] >= 1
+    stages = r["engine_stages_ms"]  # every stage of every prediction, in pipeline order, adding up to engine_ms
+    assert list(stages) == list(STAGES)
+    for v in stages.values():
+        _check_figures(v, ("p50", "p95", "max"))
+        assert v["count"] == r["engine_ms"]["count"]
+    assert sum(v["mean"] for v in stages.values()) == pytest.approx(r["engine_ms"]["mean"], rel=1e-3, abs=0.05)
+    assert "engine stages, p50: " in format_report(r)
     if r["sketch"] is not None:  # the opened sketch is a background layer: every prediction renders a composite
         _check_figures(r["composite_ms"], ("p50", "p99", "max"))
         assert r["composite_ms"]["count"] >= plan.strokes and "canvas composite" in format_report(r)
