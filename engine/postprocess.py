@@ -178,9 +178,23 @@ def subdivide(mesh: Mesh, levels: int = 1, method: str = "loop") -> Mesh:
     return Mesh(v.astype(np.float32), f)
 
 
+def _cross(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row-wise cross product of (N, 3) arrays as its three (N,) components (np.cross's axis handling
+    cost as much as the arithmetic at the sizes of a self-intersection check)."""
+    u0, u1, u2 = u.T
+    v0, v1, v2 = v.T
+    return u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+
+
+def _dot(n: tuple[np.ndarray, np.ndarray, np.ndarray], w: np.ndarray) -> np.ndarray:
+    """(N,) row-wise dot product of :func:`_cross`'s components with (N, 3) ``w``."""
+    w0, w1, w2 = w.T
+    return n[0] * w0 + n[1] * w1 + n[2] * w2
+
+
 def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
     """(N,) signed volume det[b - a, c - a, d - a] (6 x tetrahedron volume)."""
-    return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a)
+    return _dot(_cross(b - a, c - a), d - a)
 
 
 def _segment_crosses_triangle(p, q, a, b, c, eps) -> np.ndarray:
@@ -216,22 +230,32 @@ def triangles_intersect(t1: np.ndarray, t2: np.ndarray, eps: float = 0.0) -> np.
     t2 = np.asarray(t2, dtype=np.float64)
     if t1.shape != t2.shape or t1.ndim != 3 or t1.shape[1:] != (3, 3):
         raise ValueError(f"triangles must both be (N, 3, 3), got {t1.shape} and {t2.shape}")
-    # early out, exact in the same predicate: a triangle whose three corners lie strictly on one side of
-    # the other's plane cannot cross it (most broad-phase pairs are neighbours of neighbours, rejected here)
-    live = np.ones(len(t1), dtype=bool)
+    # each corner's side of the other triangle's plane, its normal computed once: the same predicate as
+    # _segment_crosses_triangle's straddle test. Early out: a triangle whose three corners lie strictly on one side
+    # of the other's plane cannot cross it (most broad-phase pairs are neighbours of neighbours, rejected here)
+    sides = []
     for s, t in ((t1, t2), (t2, t1)):
-        side = np.stack([_orient(t[:, 0], t[:, 1], t[:, 2], s[:, k]) for k in range(3)], axis=1)
+        normal = _cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+        sides.append(np.stack([_dot(normal, s[:, k] - t[:, 0]) for k in range(3)], axis=1))
+    live = np.ones(len(t1), dtype=bool)
+    for side in sides:
         live &= ~(np.all(side > eps, axis=1) | np.all(side < -eps, axis=1))
     hit = np.zeros(len(t1), dtype=bool)
     idx = np.flatnonzero(live)
     if len(idx) == 0:
         return hit
-    u1, u2 = t1[idx], t2[idx]
     found = np.zeros(len(idx), dtype=bool)
-    for s, t in ((u1, u2), (u2, u1)):
-        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    for s, t, side in ((t1[idx], t2[idx], sides[0][idx]), (t2[idx], t1[idx], sides[1][idx])):
         for i, j in ((0, 1), (1, 2), (2, 0)):
-            found |= _segment_crosses_triangle(s[:, i], s[:, j], a, b, c, eps)
+            # edge ij crosses t: its ends strictly on opposite sides of t's plane, then (only for those) the line
+            # strictly inside t (_segment_crosses_triangle's definition, evaluated where it can still hold)
+            sp_, sq = side[:, i], side[:, j]
+            k = np.flatnonzero(((sp_ > eps) & (sq < -eps)) | ((sp_ < -eps) & (sq > eps)))
+            if len(k) == 0:
+                continue
+            p, q, a, b, c = s[k, i], s[k, j], t[k, 0], t[k, 1], t[k, 2]
+            o1, o2, o3 = _orient(p, q, a, b), _orient(p, q, b, c), _orient(p, q, c, a)
+            found[k] |= ((o1 > eps) & (o2 > eps) & (o3 > eps)) | ((o1 < -eps) & (o2 < -eps) & (o3 < -eps))
     hit[idx] = found
     return hit
 

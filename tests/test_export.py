@@ -299,19 +299,22 @@ def test_candidate_pairs_match_brute_force_on_a_crumpled_mesh():
     np.testing.assert_array_equal(candidate_pairs(mesh), brute[np.lexsort((brute[:, 1], brute[:, 0]))])
 
 
-def test_triangles_intersect_early_out_agrees_with_the_edge_test():
-    # the plane-side early out must not change an answer: against the definition (an edge of one crosses
-    # the other) evaluated on every pair, on random pairs of which a good share cross
+@pytest.mark.parametrize("eps", [0.0, 0.05])
+def test_triangles_intersect_early_out_agrees_with_the_edge_test(eps):
+    # the plane-side early out and the straddle filter must not change an answer: against the definition (an
+    # edge of one crosses the other) evaluated on every pair, on random pairs of which a good share cross, and
+    # with a tolerance that decides some of them; edge-on pairs (a corner in the other's plane) included
     from engine.postprocess import _segment_crosses_triangle
 
     rng = np.random.default_rng(0)
     t1 = rng.normal(size=(4000, 3, 3))
     t2 = t1[:, [1, 2, 0]] * 0.5 + rng.normal(scale=0.6, size=(4000, 3, 3))
+    t2[:500, 0] = t1[:500, 0] + 0.3 * (t1[:500, 1] - t1[:500, 0]) + 0.2 * (t1[:500, 2] - t1[:500, 0])  # in t1's plane
     ref = np.zeros(4000, bool)
     for s, t in ((t1, t2), (t2, t1)):
         for i, j in ((0, 1), (1, 2), (2, 0)):
-            ref |= _segment_crosses_triangle(s[:, i], s[:, j], t[:, 0], t[:, 1], t[:, 2], 0.0)
-    got = triangles_intersect(t1, t2)
+            ref |= _segment_crosses_triangle(s[:, i], s[:, j], t[:, 0], t[:, 1], t[:, 2], eps)
+    got = triangles_intersect(t1, t2, eps)
     assert 0.1 < ref.mean() < 0.9
     np.testing.assert_array_equal(got, ref)
 
