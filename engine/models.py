@@ -1,8 +1,8 @@
 """ONNX model loading and validation against :mod:`engine.contract`.
 
 Nothing is loaded at import time. :func:`load_generator` and :func:`load_predictor` create an
-onnxruntime session (CPU, ``intra_op_num_threads`` = physical cores, one inter-op thread,
-spinning off) and check, once, the input/output names, ranks and static dimensions and the
+onnxruntime session (CPU, ``intra_op_num_threads`` = physical cores or ``SKETCHMESH_THREADS``,
+one inter-op thread, spinning off) and check, once, the input/output names, ranks and static dimensions and the
 required metadata. Every problem is an :class:`engine.errors.ModelError` naming the file and
 what was wrong.
 """
@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from engine import contract as C
-from engine.errors import ModelError
+from engine.errors import ModelError, SketchmeshError
 from engine.icosphere import TEMPLATE_RADIUS, level_for_vertex_count
 
 MAX_DEFAULT_THREADS = 8
@@ -46,8 +46,23 @@ def physical_cores() -> int:
     return max(1, len(cores))
 
 
+THREADS_ENV = "SKETCHMESH_THREADS"
+"""Environment variable that sets :func:`default_threads` (a whole number of threads, 1 to MAX_THREADS_ENV)."""
+MAX_THREADS_ENV = 256
+
+
 def default_threads() -> int:
-    """intra-op threads used when the caller gives none: physical cores, capped at MAX_DEFAULT_THREADS."""
+    """intra-op threads used when the caller gives none: physical cores, capped at MAX_DEFAULT_THREADS,
+    unless ``SKETCHMESH_THREADS`` names a count (the app and every command that takes no ``--threads``).
+
+    Raises:
+        SketchmeshError: ``SKETCHMESH_THREADS`` is set but not a whole number from 1 to MAX_THREADS_ENV.
+    """
+    value = os.environ.get(THREADS_ENV, "").strip()
+    if value:
+        if not (value.isdigit() and 1 <= int(value) <= MAX_THREADS_ENV):
+            raise SketchmeshError(f"{THREADS_ENV} must be a whole number of threads from 1 to {MAX_THREADS_ENV}, got {value!r}")
+        return int(value)
     return max(1, min(physical_cores(), MAX_DEFAULT_THREADS))
 
 

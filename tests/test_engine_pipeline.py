@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 import subprocess
 import sys
 import threading
@@ -22,10 +24,10 @@ from onnx_fixtures import (
 )
 
 from engine import contract as C
-from engine.errors import EmptySketchError, ModelError, SketchInputError
+from engine.errors import EmptySketchError, ModelError, SketchInputError, SketchmeshError
 from engine.icosphere import icosphere
 from engine.mesh import Mesh
-from engine.models import default_threads, load_generator, load_predictor, physical_cores
+from engine.models import THREADS_ENV, default_threads, load_generator, load_predictor, physical_cores
 from engine.pipeline import STAGES, SketchEngine, assemble_mesh, downsample_normals
 from engine.preprocess import rasterize_strokes, sketch_raster_from_image
 from engine.strokes import Stroke
@@ -295,11 +297,26 @@ def test_assemble_and_downsample_guards():
     np.testing.assert_allclose(downsample_normals(x), x.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5)), atol=1e-6)
 
 
-def test_thread_defaults():
-    import os
-
+def test_thread_defaults(monkeypatch):
+    monkeypatch.delenv(THREADS_ENV, raising=False)
     assert 1 <= physical_cores() <= (os.cpu_count() or 1)
     assert 1 <= default_threads() <= physical_cores()
+
+
+def test_threads_from_the_environment(monkeypatch, models, sketch_png, tmp_path):
+    # SKETCHMESH_THREADS sets the engine's intra-op threads where no --threads is given (the app has none);
+    # a bad value is a clear error naming the variable, from the engine and from the command line
+    monkeypatch.setenv(THREADS_ENV, "3")
+    assert default_threads() == 3 and SketchEngine(models).threads == 3
+    assert SketchEngine(models, threads=2).threads == 2  # an explicit count wins
+    for bad in ("0", "two", "-1", "1.5", "257"):
+        monkeypatch.setenv(THREADS_ENV, bad)
+        with pytest.raises(SketchmeshError, match=f"{THREADS_ENV} must be a whole number .* got '{re.escape(bad)}'"):
+            SketchEngine(models)
+    r = subprocess.run([sys.executable, "-m", "sketchmesh", "infer", str(sketch_png), "-o", str(tmp_path / "m.obj"),
+                        "--models", str(models)], capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                       env={**os.environ, THREADS_ENV: "lots"})
+    assert r.returncode != 0 and THREADS_ENV in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
 def test_importing_the_engine_cli_is_cheap():
