@@ -131,7 +131,11 @@
 #   machine from its end, the data reused (g25b: 560 iterations in 137 s; 1,079 in all, 552,000 samples):
 #     SHAPES=600 VIEWS_PER_SHAPE=4 INPUTS=generated ARCH=... EXTRA="--mirror-consistency 50" SPECS="g25b 512 2e-4" CAL=0 \
 #       ITERS=560 WARMUP=20 END=215 GEN_MODELS=assets/models bash training/gpu_predictor.sh runs/gpu10/g25
-#   then fetch-gpu-v25 with each call's files, val-*-v25-gpu (against the twentieth).
+#   then fetch-gpu-v25 with each call's files, val-*-v25-gpu (against the twentieth). It was ahead on validation by
+#   +0.012 / +0.005 / +0.018 mirror averaged, more than any CPU pass, and became the twenty-first pair (all-v26).
+# The next lent GPU: the same two calls from the bundled twenty-first (assets/models), with SHAPES=800 (2,600 shapes
+#   none of the stages has seen: more shapes is what paid; about 250 s of rendering and 2 x 100 s of generated sets,
+#   so the first call trains about a minute and the second, on the warm machine, the rest), into RUNS g27 / g27b.
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}

@@ -204,6 +204,7 @@ RUNS22=${RUNS22:-runs/v22}
 OUT22=${OUT22:-out/v22}
 DATAV22=${DATAV22:-data/views22}
 DATA30=${DATA30:-data/proc300e4}
+DATA60=${DATA60:-data/proc600v4}
 DATA40=${DATA40:-data/proc400e4}
 RUNS23=${RUNS23:-runs/v23}
 OUT23=${OUT23:-out/v23}
@@ -1595,6 +1596,36 @@ EOF
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT20/val_${EVAL_NAME#eval_}" "$RUNS20/v20_data" "$RUNS19/v19_b32" "$RUNS19/g19" ;;
     retrieval-v20|retrieval-strong-v20|retrieval-side-v20|retrieval-v23|retrieval-strong-v23|retrieval-side-v23|\
+    data-v26)  # the GPU stage's data on this CPU (DATA60 [data/proc600v4]): 600 shapes per category at 4 of the 48 grid
+      # views each (`data --views-per-shape 4`, split md5 751cbb43... as on the lent machine), about 25 min on 2 cores;
+      # resumes. For retrieval from the shapes the twenty-first saw (retrieval-*-v26) and for CPU passes over them
+      sketchmesh data --source procedural --shapes-per-category 600 --views 12 --elevations 0 15 30 45 --views-per-shape 4 \
+        --workers 2 --out "$DATA60"
+      python3 -c "
+import hashlib, json
+m = json.load(open('$DATA60/manifest.json'))
+print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in m['shapes']]).encode()).hexdigest())" ;;
+    generated-v26|generated-mirror-v26)  # generated-v8 and generated-mirror-v9 on DATA60's train split (the same generator,
+      # settings and names as the lent machine's), about 7 min each on 2 cores; resume
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$DATA60" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 ;;
+    predictor-v26-more)  # the twenty-first (RUNS25/g25b) a pass along a new cosine on DATA60 (the GPU stage's 7,800 shapes at
+      # 4 views each, after data-v26 generated-v26 generated-mirror-v26) by the CPU recipe (recipe20) into RUNS25/v26_more:
+      # V26_MORE_ITERS [4000], V26_MORE_MINUTES [50] at most, two threads; resumes. Set against its start by val-*-v26-more
+      [ -f "$RUNS25/g25b/config.json" ] || { echo "$1 starts from $RUNS25/g25b: run fetch-gpu-v25 first" >&2; exit 1; }
+      [ -f "$DATA60/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA60: run data-v26 generated-v26 generated-mirror-v26 first" >&2; exit 1; }
+      DATA20=$DATA60 recipe20 "$RUNS25/g25b" "$RUNS25/v26_more" "${V26_MORE_ITERS:-4000}" "${V26_MORE_MINUTES:-50}" 2 ;;
+    val-v26-more|val-strong-v26-more|val-side-v26-more)  # predictor-v26-more's run against its start, the twenty-first,
+      # plain and +mirror, validation split (OUT26/val_more_*)
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT26/val_more_${EVAL_NAME#eval_}" "$RUNS25/v26_more" "$RUNS25/g25b" ;;
+    retrieval-v26|retrieval-strong-v26|retrieval-side-v26)  # retrieval-*-v24's floor from DATA60 (after data-v26): the
+      # 7,800 shapes the twenty-first's GPU stage trained on, at their 4 views each, the same samples
+      candidate "$1"; eval_case "${1/retrieval-/eval-}"
+      sketchmesh eval "$CAND_RUN" --data "$DATA2" --split test --generator-run "$RUNS8/fifth/generator" \
+        --retrieval-data "$DATA60" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 \
+        --out "$CAND_OUT/final/retrieval60_${EVAL_NAME#eval_}" ;;
     retrieval-v24|retrieval-strong-v24|retrieval-side-v24)  # the
       # retrieval floor on the same data as the candidate: the nearest of its train views (DATA20's, DATA30's for v23, DATA40's for
       # v24: the shapes it saw) to each test query, the same samples as eval-*-v20 / eval-*-v23
@@ -1690,6 +1721,20 @@ EOF
       for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
       trap 'kill "${busy[@]}" 2>/dev/null' EXIT
       play_sessions "${SESSION_LOAD_OUT:-$OUT25/session_load}"
+      kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
+    session-load-threads)  # session-load's load with ONNX Runtime's intra-op threads set to 2 and to 1 in turn, twice
+      # (SKETCHMESH_THREADS), into OUT26/session_load_threads: is the engine's slowdown in the app under load its thread pool?
+      local busy=() k t
+      for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
+      trap 'kill "${busy[@]}" 2>/dev/null' EXIT
+      mkdir -p "$OUT26/session_load_threads"
+      for k in 1 2; do
+        for t in 2 1; do
+          local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT26/session_load_threads/t${t}_$k.json")
+          if [ -n "${DISPLAY:-}" ]; then SKETCHMESH_THREADS=$t "${run[@]}"
+          else SKETCHMESH_THREADS=$t xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
+        done
+      done
       kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
