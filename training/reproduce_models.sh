@@ -1719,14 +1719,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # composite renders (composite_ms: the opened sketch is a background layer under the strokes)
       local busy=()
       for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
-      trap 'kill "${busy[@]}" 2>/dev/null' EXIT
+      trap "kill ${busy[*]} 2>/dev/null" EXIT  # the pids written in now: busy is local, gone when the trap runs
       play_sessions "${SESSION_LOAD_OUT:-$OUT25/session_load}"
       kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
     session-load-threads)  # session-load's load with ONNX Runtime's intra-op threads set to 2 and to 1 in turn, twice
       # (SKETCHMESH_THREADS), into OUT26/session_load_threads: is the engine's slowdown in the app under load its thread pool?
       local busy=() k t
       for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
-      trap 'kill "${busy[@]}" 2>/dev/null' EXIT
+      trap "kill ${busy[*]} 2>/dev/null" EXIT  # the pids written in now: busy is local, gone when the trap runs
       mkdir -p "$OUT26/session_load_threads"
       for k in 1 2; do
         for t in 2 1; do
