@@ -198,7 +198,8 @@ def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.nd
 
 
 def _segment_crosses_triangle(p, q, a, b, c, eps) -> np.ndarray:
-    """(N,) bool: segment pq properly crosses triangle abc (strictly, up to ``eps``).
+    """(N,) bool: segment pq properly crosses triangle abc (strictly, up to ``eps``): the definition
+    :func:`triangles_intersect` evaluates in bulk, kept as its reference (tests check they agree).
 
     The endpoints lie strictly on opposite sides of the triangle's plane and the line pq passes
     strictly inside the triangle (the three edge orientations share a sign).

@@ -19,15 +19,23 @@ import sys
 
 from engine.cliutil import one_line_errors, run_guarded
 
-GUI_VALUE_OPTIONS = ("--open", "--screenshot", "--models", "--report")
-"""The GUI's options that take a value (app.main.add_gui_arguments): a run whose other words are all options is the GUI."""
+
+def gui_value_options() -> set[str]:
+    """The GUI's options that take a value, read from :func:`app.main.add_gui_arguments` (which imports only argparse)."""
+    from app.main import add_gui_arguments
+
+    parser = argparse.ArgumentParser(add_help=False)
+    add_gui_arguments(parser)
+    return {s for action in parser._actions if action.nargs != 0 for s in action.option_strings}
 
 
 def is_gui_run(argv: list[str]) -> bool:
-    """Whether ``sketchmesh ARGV`` starts the desktop app (no subcommand), judged before argparse and numpy load."""
+    """Whether ``sketchmesh ARGV`` starts the desktop app (no subcommand), judged before argparse and numpy load:
+    every word is an option or the value of a GUI option that takes one."""
+    takes_value = gui_value_options()
     words = iter(argv)
     for word in words:
-        if word in GUI_VALUE_OPTIONS:
+        if word in takes_value:
             next(words, None)
         elif not word.startswith("-"):
             return False

@@ -336,14 +336,27 @@ candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v1
   esac
 }
 
-play_sessions() {  # three scripted app sessions (sketchmesh --open SAMPLE --report) into folder $1, in the real window
-  # (Xvfb when headless)
+play_session() {  # one scripted app session (sketchmesh --open SAMPLE --report), report $1, in the real window (Xvfb
+  # when headless)
+  local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$1")
+  if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
+}
+
+play_sessions() {  # three of play_session into folder $1
   mkdir -p "$1"
   local i
-  for i in 1 2 3; do
-    local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$1/session_$i.json")
-    if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
-  done
+  for i in 1 2 3; do play_session "$1/session_$i.json"; done
+}
+
+busy_start() {  # two busy loops keep both cores loaded (another job on the artist's laptop) until busy_stop or the
+  # script's end (the trap names their pids when it is set, so it works wherever the script stops)
+  BUSY_PIDS=()
+  for _ in 1 2; do python3 -c 'while True: pass' & BUSY_PIDS+=($!); done
+  trap "kill ${BUSY_PIDS[*]} 2>/dev/null" EXIT
+}
+
+busy_stop() {
+  kill "${BUSY_PIDS[@]}" 2>/dev/null; trap - EXIT
 }
 
 finetune_pair() {  # $1 a GPU-continued run, $2 the run it is compared with, $3 a prefix: both trained side by side on one
@@ -1717,25 +1730,18 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     session-load)  # play_sessions with the bundled pair while two busy loops keep both cores loaded (another job on the
       # artist's laptop), into SESSION_LOAD_OUT [OUT25/session_load]: the UI lag under load, and the worker's
       # composite renders (composite_ms: the opened sketch is a background layer under the strokes)
-      local busy=()
-      for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
-      trap "kill ${busy[*]} 2>/dev/null" EXIT  # the pids written in now: busy is local, gone when the trap runs
+      busy_start
       play_sessions "${SESSION_LOAD_OUT:-$OUT25/session_load}"
-      kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
+      busy_stop ;;
     session-load-threads)  # session-load's load with ONNX Runtime's intra-op threads set to 2 and to 1 in turn, twice
       # (SKETCHMESH_THREADS), into OUT26/session_load_threads: is the engine's slowdown in the app under load its thread pool?
-      local busy=() k t
-      for _ in 1 2; do python3 -c 'while True: pass' & busy+=($!); done
-      trap "kill ${busy[*]} 2>/dev/null" EXIT  # the pids written in now: busy is local, gone when the trap runs
+      local k t
+      busy_start
       mkdir -p "$OUT26/session_load_threads"
       for k in 1 2; do
-        for t in 2 1; do
-          local run=(sketchmesh --open assets/samples/car_car_00002_v3.png --report "$OUT26/session_load_threads/t${t}_$k.json")
-          if [ -n "${DISPLAY:-}" ]; then SKETCHMESH_THREADS=$t "${run[@]}"
-          else SKETCHMESH_THREADS=$t xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
-        done
+        for t in 2 1; do SKETCHMESH_THREADS=$t play_session "$OUT26/session_load_threads/t${t}_$k.json"; done
       done
-      kill "${busy[@]}" 2>/dev/null; trap - EXIT ;;
+      busy_stop ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
                eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 \
