@@ -23,6 +23,8 @@ What it measures (written to the report, see :func:`build_report`):
 * ``engine_ms``: the engine's own time per prediction (the sum of its stages), and
   ``engine_stages_ms``: each stage of it (``engine.pipeline.STAGES``), to find the one that
   slows when the app shares the cores with other work.
+* ``nice``: the nice values the worker and render threads ran at (``SKETCHMESH_WORKER_NICE``,
+  ``SKETCHMESH_RENDER_NICE``; 0 by default), so reports made with other values say so.
 
 The exported mesh is written beside the report (``REPORT.glb`` for ``REPORT.json``).
 """
@@ -45,7 +47,8 @@ from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication
 
 from app.canvas import TOOL_ERASER, TOOL_PEN, guide_rect
-from app.viewport import VIEW_PRESETS
+from app.viewport import RENDER_NICE, VIEW_PRESETS
+from app.worker import WORKER_NICE
 
 PROBE_INTERVAL_MS = 5
 """Period of the lateness probe; a tick can be late by at most the longest stall."""
@@ -446,6 +449,7 @@ def build_report(session: ScriptedSession, *, sketch: str | None, models: str, d
         "meshes_shown": log.meshes_shown,
         "failures": log.failures,
         "machine": {"python": platform.python_version(), "cpu_count": os.cpu_count(), "platform": platform.platform()},
+        "nice": {"worker": WORKER_NICE, "render": RENDER_NICE},
     }
     return report
 

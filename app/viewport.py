@@ -46,6 +46,7 @@ from PySide6.QtCore import QEventLoop, QMetaObject, QObject, QRectF, Qt, QThread
 from PySide6.QtGui import QColor, QImage, QMouseEvent, QPainter, QPaintEvent, QResizeEvent, QShowEvent, QWheelEvent
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
+from app.worker import lower_thread_priority, nice_from_env
 from engine.camera import DEFAULT_DISTANCE, DEFAULT_FOV_DEG
 from engine.mesh import Mesh, vertex_normals
 
@@ -57,9 +58,12 @@ EDGE_COLOR = (0.25, 0.55, 0.95)
 RENDER_ON_THREAD = sys.platform != "darwin"
 """Render on a thread of its own (macOS: on the GUI thread, from the event loop)."""
 
-RENDER_NICE = int(os.environ.get("SKETCHMESH_RENDER_NICE", "5"))
-"""Nice value of the render thread (Linux; a software rasterizer's threads inherit it): frames
-may come a little later when the CPU is short, the UI thread never waits for them."""
+RENDER_NICE_ENV = "SKETCHMESH_RENDER_NICE"
+RENDER_NICE = nice_from_env(RENDER_NICE_ENV, 0)
+"""Nice value of the render thread (Linux; a software rasterizer's threads inherit it); 0 (the
+default) leaves it at the app's priority. It was 5 until 2026-11-27: under load its frames took
+twice as long (31 against 14 ms p50) for no gain in the UI's lag (``reproduce_models.sh session-nice``;
+the VTK calls hold Python's GIL, so a slowed render thread can hold up the UI thread too)."""
 
 SYNC_TIMEOUT_MS = 10_000
 """Longest wait for a frame in :meth:`MeshViewport.sync` (screenshots, tests)."""
@@ -156,8 +160,6 @@ class _Scene(QObject):
 
     def _setup(self, width: int, height: int) -> None:
         if RENDER_ON_THREAD:
-            from app.worker import lower_thread_priority  # noqa: PLC0415
-
             lower_thread_priority(RENDER_NICE)  # before GL starts its rasterizer threads: they inherit it
         import vtkmodules.vtkInteractionStyle  # noqa: F401, PLC0415 (registers the styles)
         from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera  # noqa: PLC0415

@@ -47,10 +47,32 @@ DEFAULT_DEBOUNCE_MS = 100
 LIVE_WHILE_DRAWING_MAX_MS = 120.0
 """Send requests while a stroke is still being drawn only if the last inference took less."""
 
-WORKER_NICE = int(os.environ.get("SKETCHMESH_WORKER_NICE", "10"))
-"""Nice value of the inference thread (Linux), inherited by the ONNX Runtime threads it starts:
-on a 2-core machine the UI and render threads then win the CPU whenever they need it, and
-inference takes the rest (0 turns it off)."""
+MAX_NICE = 19
+"""The largest nice value Linux has (the lowest priority)."""
+
+
+def nice_from_env(name: str, default: int) -> int:
+    """The nice value environment variable ``name`` sets (0 to MAX_NICE; 0 leaves the thread as it is), else ``default``.
+
+    Raises:
+        SketchmeshError: ``name`` is set but not a whole number from 0 to MAX_NICE.
+    """
+    value = os.environ.get(name, "").strip()
+    if not value:
+        return default
+    if not (value.isdigit() and int(value) <= MAX_NICE):
+        raise SketchmeshError(f"{name} must be a whole number from 0 (off) to {MAX_NICE}, got {value!r}")
+    return int(value)
+
+
+WORKER_NICE_ENV = "SKETCHMESH_WORKER_NICE"
+WORKER_NICE = nice_from_env(WORKER_NICE_ENV, 0)
+"""Nice value of the inference thread (Linux), inherited by the ONNX Runtime threads it starts;
+0 (the default) leaves it at the app's priority. A higher value was the default until 2026-11-27
+(10, meant to let the UI and render threads win the CPU): it gave inference away to every other
+process on a busy machine (the engine 1,256 ms p50 per stroke against 178 at 0 with both cores of
+a 2-core machine busy) and made the UI stall longer, not shorter (max lag 112 ms against 33), as
+the worker holds Python's GIL between the engine's calls: ``reproduce_models.sh session-nice``."""
 
 SHUTDOWN_WAIT_MS = 10_000
 """How long closing waits for an inference in progress to finish."""
@@ -133,9 +155,12 @@ def warm_imports() -> None:
     import engine.export  # noqa: F401, PLC0415
 
 
-def lower_thread_priority(nice: int = WORKER_NICE) -> bool:
-    """Raise the calling thread's nice value (Linux: per thread; threads it starts inherit it).
-    Returns False where that is not possible (other systems, or refused)."""
+def lower_thread_priority(nice: int | None = None) -> bool:
+    """Raise the calling thread's nice value to ``nice`` (default WORKER_NICE, read when called;
+    Linux: per thread; threads it starts inherit it). Returns False where nothing changed: a value of
+    0, other systems, or refused."""
+    if nice is None:
+        nice = WORKER_NICE
     if nice <= 0 or not sys.platform.startswith("linux") or not hasattr(os, "setpriority"):
         return False
     try:

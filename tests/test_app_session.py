@@ -101,13 +101,15 @@ def test_cli_report_plays_the_documented_session(tmp_path):
     """The full default plan through the command line: 20 strokes, 5 undo, 5 redo, 3 erase, every view, one export."""
     models = write_fixture_models(tmp_path / "models")
     report = tmp_path / "session.json"
-    env = dict(os.environ, XDG_CONFIG_HOME=str(tmp_path / "cfg"), XDG_DATA_HOME=str(tmp_path / "data"))
+    env = dict(os.environ, XDG_CONFIG_HOME=str(tmp_path / "cfg"), XDG_DATA_HOME=str(tmp_path / "data"),
+               SKETCHMESH_WORKER_NICE="2", SKETCHMESH_RENDER_NICE="0")  # the report says what the threads ran at
     cmd = [sys.executable, "-m", "sketchmesh", "--open", str(_sketch_png(tmp_path / "ring.png")), "--report", str(report),
            "--models", str(models)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=env, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "UI lag (event-loop delay" in r.stdout and "pen up -> mesh on screen" in r.stdout
     _check_report(json.loads(report.read_text()), SessionPlan(), tmp_path / "session.glb")
+    assert json.loads(report.read_text())["nice"] == {"worker": 2, "render": 0}
     # a broken request fails with one line, and writes nothing
     bad = subprocess.run([*cmd[:-2], "--models", str(tmp_path)], capture_output=True, text=True, cwd=ROOT, env=env, timeout=120)
     lines = [ln for ln in bad.stderr.strip().splitlines() if ln.startswith("sketchmesh:")]

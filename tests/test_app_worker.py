@@ -6,6 +6,9 @@ real engine on the fixture ONNX models (tests/onnx_fixtures.py) tests that resul
 
 from __future__ import annotations
 
+import os
+import re
+import subprocess
 import sys
 import threading
 import time
@@ -16,15 +19,18 @@ from gui_helpers import FakeEngine, gui_isolation, make_stroke
 from onnx_fixtures import write_fixture_models
 from PySide6.QtCore import QObject, QTimer, Signal
 
+import app.worker
 from app.canvas import BackgroundLayer, CanvasComposite
 from app.jobs import JobQueue
 from app.worker import (
+    MAX_NICE,
     CanvasRaster,
     EventLoopLatencyProbe,
     InferenceController,
     lower_thread_priority,
+    nice_from_env,
 )
-from engine.errors import ModelError
+from engine.errors import ModelError, SketchmeshError
 from engine.pipeline import SketchEngine
 from engine.preprocess import preprocess_raster
 
@@ -339,3 +345,48 @@ def test_lower_thread_priority_affects_only_the_calling_thread():
     assert seen[0] is True and seen[1] >= 7
     assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == main_nice
     assert lower_thread_priority(0) is False
+
+
+def test_nice_values_from_the_environment(monkeypatch):
+    monkeypatch.delenv("SKETCHMESH_TEST_NICE", raising=False)
+    assert nice_from_env("SKETCHMESH_TEST_NICE", 4) == 4
+    for text, want in (("0", 0), (" 7 ", 7), (str(MAX_NICE), MAX_NICE), ("", 4)):
+        monkeypatch.setenv("SKETCHMESH_TEST_NICE", text)
+        assert nice_from_env("SKETCHMESH_TEST_NICE", 4) == want
+    for bad in ("-1", "20", "low", "2.5"):
+        monkeypatch.setenv("SKETCHMESH_TEST_NICE", bad)
+        with pytest.raises(SketchmeshError, match=f"SKETCHMESH_TEST_NICE must be a whole number .* got '{re.escape(bad)}'"):
+            nice_from_env("SKETCHMESH_TEST_NICE", 4)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice values are Linux's")
+@pytest.mark.parametrize("nice", [0, 6])
+def test_the_worker_runs_inference_at_the_configured_nice_value(qtbot, controller, monkeypatch, nice):
+    # 0 (the default) leaves the worker at the app's priority: a higher value hands inference to any other
+    # process on a busy machine (reproduce_models.sh session-nice)
+    import os
+
+    monkeypatch.setattr(app.worker, "WORKER_NICE", nice)
+    seen = []
+
+    class Recording(FakeEngine):
+        def predict(self, sketch, **kw):
+            seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+            return super().predict(sketch, **kw)
+
+    main_nice = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    c = controller(Recording())
+    with qtbot.waitSignal(c.predictionReady, timeout=5000):
+        c.submit(_strokes(1))
+    assert seen == [max(main_nice, nice)]
+
+
+def test_a_bad_nice_value_is_a_clear_error_from_the_command_line(tmp_path):
+    for name in ("SKETCHMESH_WORKER_NICE", "SKETCHMESH_RENDER_NICE"):
+        r = subprocess.run([sys.executable, "-m", "sketchmesh", "--report", str(tmp_path / "r.json")],
+                           capture_output=True, text=True, cwd=tmp_path, timeout=120,
+                           env={**os.environ, name: "high", "QT_QPA_PLATFORM": "offscreen"})
+        lines = [ln for ln in r.stderr.strip().splitlines() if ln.startswith("sketchmesh:")]
+        assert r.returncode != 0 and "Traceback" not in r.stderr, r.stderr
+        assert len(lines) == 1 and f"{name} must be a whole number" in lines[0], r.stderr
+        assert not (tmp_path / "r.json").exists()

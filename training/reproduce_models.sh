@@ -213,6 +213,7 @@ OUT24=${OUT24:-out/v24}
 RUNS25=${RUNS25:-runs/v25}
 OUT25=${OUT25:-out/v25}
 OUT26=${OUT26:-out/v26}
+OUT27=${OUT27:-out/v27}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -346,6 +347,26 @@ play_sessions() {  # three of play_session into folder $1
   mkdir -p "$1"
   local i
   for i in 1 2 3; do play_session "$1/session_$i.json"; done
+}
+
+session_table() {  # the session reports in folder $1 named LABEL_k.json: per LABEL, the mean over its runs of the UI
+  # lag (p99, max), pen up to mesh on screen (p50), the engine (p50) and its generator stage (p50), the render thread (p50)
+  python3 - "$1" <<'EOF'
+import json, re, sys
+from collections import defaultdict
+from pathlib import Path
+rows = defaultdict(list)
+for f in sorted(Path(sys.argv[1]).glob("*.json")):
+    rows[re.sub(r"_[0-9]+$", "", f.stem)].append(json.loads(f.read_text()))
+print(f"{'run':<16} {'n':>2} {'lag p99':>8} {'lag max':>8} {'pen-up p50':>11} {'engine p50':>11} {'generator':>10} {'render':>7}  ms")
+for label, rs in rows.items():
+    def mean(get):
+        return sum(get(r) for r in rs) / len(rs)
+    print(f"{label:<16} {len(rs):>2} {mean(lambda r: r['lag_ms']['p99']):8.1f} {mean(lambda r: r['lag_ms']['max']):8.1f} "
+          f"{mean(lambda r: r['stroke_latency_summary_ms']['p50']):11.0f} {mean(lambda r: r['engine_ms']['p50']):11.1f} "
+          f"{mean(lambda r: r['engine_stages_ms']['generator']['p50']):10.1f} {mean(lambda r: r['render_thread_ms']['p50']):7.1f}"
+          + ("" if all(not r["error"] for r in rs) else "  (an error: see the reports)"))
+EOF
 }
 
 busy_start() {  # two busy loops keep both cores loaded (another job on the artist's laptop) until busy_stop or the
@@ -1742,6 +1763,22 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         for t in 2 1; do SKETCHMESH_THREADS=$t play_session "$OUT26/session_load_threads/t${t}_$k.json"; done
       done
       busy_stop ;;
+    session-nice)  # is the app's slowness under load its own thread priorities? play_session with the inference
+      # worker's and the render thread's nice values (SKETCHMESH_WORKER_NICE:SKETCHMESH_RENDER_NICE) at each of NICE_PAIRS
+      # ["10:5 0:5 0:0"; 10:5 the defaults before 2026-11-27], idle and under session-load's busy loops, in turn twice
+      # (A B C, A B C), into OUT27/session_nice, then session_table (run it alone: it times)
+      local k pair w r
+      mkdir -p "$OUT27/session_nice"
+      for k in 1 2; do
+        for pair in ${NICE_PAIRS:-10:5 0:5 0:0}; do
+          w=${pair%:*}; r=${pair#*:}
+          SKETCHMESH_WORKER_NICE=$w SKETCHMESH_RENDER_NICE=$r play_session "$OUT27/session_nice/w${w}_r${r}_idle_$k.json"
+          busy_start
+          SKETCHMESH_WORKER_NICE=$w SKETCHMESH_RENDER_NICE=$r play_session "$OUT27/session_nice/w${w}_r${r}_load_$k.json"
+          busy_stop
+        done
+      done
+      session_table "$OUT27/session_nice" ;;
     mirror-v13)  # mirror averaging, validation split first, then the test split, its cost and the pictures
       for s in val-mirror-v13 val-strong-mirror-v13 val-side-mirror-v13 val-gt-mirror-v13 val624-mirror-v13 \
                eval-mirror-v13 eval-strong-mirror-v13 eval-side-mirror-v13 eval-gt-mirror-v13 cost-v13 compare-v13 \
