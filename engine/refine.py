@@ -52,7 +52,8 @@ The sketch camera
 
 The target outline (:func:`target_outline`)
     The drawing's filled region: ink, closed with a small morphological closing, then
-    everything that cannot be reached from the image border. Where the drawing is not closed
+    everything that cannot be reached from the image border, cut back by half a stroke to the
+    strokes' centre lines, where the contours lie (:func:`stroke_centre_region`). Where the drawing is not closed
     (the fill is not much more than the ink itself, or disagrees with the generator's
     silhouette) the generator's silhouette (normal-image pixels off the background) is the
     target instead. On the proc10 test split this picks the drawing for 94 % of clean sketches
@@ -73,6 +74,7 @@ import cv2
 import numpy as np
 
 from engine.camera import DEFAULT_FOV_DEG, NEAR, Camera, focal_from_fov, frame_camera, view_camera
+from engine.contract import SKETCH_SIZE, SKETCH_STROKE_WIDTH_PX
 from engine.mesh import Mesh
 
 DEFAULT_STEPS = 3
@@ -137,6 +139,10 @@ FILL_AGREEMENT_IOU = 0.6
 
 CLOSING_PX = 9
 """Side of the square closing kernel (pixels at 256) that bridges small gaps in the outline."""
+
+STROKE_HALF_WIDTH_PX = SKETCH_STROKE_WIDTH_PX / 2.0
+"""How far (pixels at SKETCH_SIZE) a drawing's fill reaches past the outline: the outer half of the outline's
+strokes, which :func:`stroke_centre_region` cuts away."""
 
 GENERATOR_SILHOUETTE_THRESHOLD = 0.25
 """A normal-image pixel whose largest channel exceeds this is on the generator's silhouette
@@ -313,13 +319,32 @@ def target_outline(sketch: np.ndarray, normals: np.ndarray | None = None) -> tup
     fill = fill_drawing(sketch)
     closed = fill.sum() >= CLOSED_FILL_RATIO * max(int(ink.sum()), 1)
     if normals is None:
-        return fill, "drawing"
+        return stroke_centre_region(fill), "drawing"
     gen = generator_silhouette(normals)
     if gen.shape != fill.shape:
         gen = cv2.resize(gen.astype(np.uint8), fill.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
     if closed and silhouette_iou(fill, gen) >= FILL_AGREEMENT_IOU:
-        return fill, "drawing"
+        return stroke_centre_region(fill), "drawing"
     return gen, "generator"
+
+
+def stroke_centre_region(fill: np.ndarray) -> np.ndarray:
+    """A drawing's filled region cut back to its outline strokes' centre lines.
+
+    The contours of a shape lie on the centre lines of the strokes that draw them (the data generator draws
+    the projected contours, the engine redraws a user's strokes about their centre lines, both
+    :data:`engine.contract.SKETCH_STROKE_WIDTH_PX` wide at :data:`engine.contract.SKETCH_SIZE`), so the fill, which
+    takes the whole outline stroke in, overshoots the outline by half a stroke all round: on clean validation
+    drawings by 10.5 % of its area (IoU 0.914 against the true silhouette; 0.967 cut back). The outer half stroke is
+    eroded away, by :data:`STROKE_HALF_WIDTH_PX` scaled to the mask's size (nothing where that is under half a
+    pixel); a fill too thin to survive the erosion is returned as it is.
+    """
+    f = np.asarray(fill, bool)
+    r = int(round(STROKE_HALF_WIDTH_PX * f.shape[0] / SKETCH_SIZE))
+    if r < 1 or not f.any():
+        return f
+    eroded = cv2.erode(f.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))) > 0
+    return eroded if eroded.any() else f
 
 
 # --------------------------------------------------------------------------- rasterizer

@@ -56,7 +56,14 @@ def test_bench_refine_command_writes_table_json_and_plot(data, tmp_path):
     assert all(0.0 <= rec["refine_ms_p50"] <= rec["latency_ms_p50"] for rec in records)
     for rec in records:
         assert 0.0 <= rec["sil_iou_target"] <= 1.0 and 0.0 <= rec["voxel_iou"] <= 1.0 and rec["samples"] == 2
-    assert (out / "refine.png").stat().st_size > 0 and "| clean | 2 |" in (out / "refine.md").read_text()
+        assert 0.0 <= rec["target_iou_gt"] <= 1.0 and rec["split"] == "test"
+    assert records[0]["target_iou_gt"] == records[1]["target_iou_gt"]  # the target does not depend on N
+    md = (out / "refine.md").read_text()
+    assert (out / "refine.png").stat().st_size > 0 and "| clean | 2 |" in md
+    assert "test split; the target outline against the true silhouette, IoU: clean " in md
+    # --split val reads the validation sketches: this dataset has none, which is said, not a traceback
+    assert main(["bench", "refine", "--data", str(data), "--out", str(tmp_path / "val"), "--models", str(models),
+                 "--split", "val", "--steps", "0", "--styles", "clean", "--quiet"]) != 0
     # with the app's mirror averaging the unrefined mesh is another one (the fixture is not mirror-equivariant)
     assert main(["bench", "refine", "--data", str(data), "--out", str(tmp_path / "mirror"), "--models", str(models),
                  "--steps", "0", "--styles", "clean", "--max-samples", "2", "--quiet", "--mirror-average",
@@ -100,8 +107,13 @@ def test_bench_refine_true_camera_diagnostic(data, tmp_path):
     assert records[0]["voxel_iou_true_camera"] == pytest.approx(records[0]["voxel_iou"], abs=1e-12)
     assert 0.0 <= records[1]["voxel_iou_true_camera"] <= 1.0
     assert "true camera (diagnostic)" in (out / "refine.md").read_text()
+    for r in records:  # and how far the estimated camera is from the true one (the same for every N)
+        assert all(np.isfinite(r[k]) and r[k] >= 0 for k in ("camera_focal_error", "bbox_focal_error", "camera_principal_error"))
+        assert r["camera_focal_error"] == records[0]["camera_focal_error"]
+    assert "the engine's camera against the true one" in (out / "refine.md").read_text()
     plain = tmp_path / "plain"
     assert main(["bench", "refine", "--data", str(data), "--out", str(plain), "--models", str(models), "--steps", "0",
                  "--styles", "clean", "--max-samples", "1", "--quiet", "--no-intersections"]) == 0
     assert json.loads((plain / "refine.json").read_text())["records"][0]["voxel_iou_true_camera"] is None
+    assert json.loads((plain / "refine.json").read_text())["records"][0]["camera_focal_error"] is None
     assert "diagnostic" not in (plain / "refine.md").read_text()

@@ -29,6 +29,7 @@ from engine.refine import (
     render_silhouette,
     silhouette_iou,
     sketch_camera,
+    stroke_centre_region,
     target_outline,
 )
 from engine.strokes import Stroke
@@ -80,6 +81,29 @@ def test_fill_drawing_fills_closed_outlines_and_handles_the_frame():
     cv2.ellipse(open_arc, (32, 32), (20, 20), 0, 0, 180, 1.0, 2)
     _, source = target_outline(open_arc, np.zeros((64, 64, 3), np.float32))
     assert source == "generator"
+
+
+def test_a_drawn_outline_is_cut_back_to_its_strokes_centre_line():
+    # a circle of radius 60 px drawn as the engine draws strokes (2 px wide, about the centre line): the fill takes
+    # the outer half of the stroke in (about pi 61^2), the target is the region the centre line bounds (pi 60^2)
+    from engine.preprocess import draw_segments
+
+    a = np.linspace(0, 2 * np.pi, 241)
+    pts = np.stack([128 + 60 * np.cos(a), 128 + 60 * np.sin(a)], 1)
+    sketch = draw_segments(np.stack([pts[:-1], pts[1:]], 1))
+    fill = fill_drawing(sketch)
+    target, source = target_outline(sketch)
+    disc = np.pi * 60**2
+    assert source == "drawing" and fill.sum() > 1.025 * disc  # a full stroke-half too big
+    assert abs(target.sum() - disc) < 0.01 * disc, (target.sum(), disc)
+    assert np.array_equal(target, stroke_centre_region(fill)) and not (target & ~fill).any()
+    # at 64 px the half stroke is a quarter pixel: nothing is cut; a fill thinner than the cut is kept whole
+    small = np.zeros((64, 64), bool)
+    small[20:40, 20:40] = True
+    assert np.array_equal(stroke_centre_region(small), small)
+    line = np.zeros((256, 256), bool)
+    line[100, 50:200] = True
+    assert np.array_equal(stroke_centre_region(line), line)
 
 
 def test_sphere_refined_towards_an_ellipse_raises_iou_and_keeps_depth_and_topology():

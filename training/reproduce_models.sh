@@ -1763,6 +1763,25 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         for t in 2 1; do SKETCHMESH_THREADS=$t play_session "$OUT26/session_load_threads/t${t}_$k.json"; done
       done
       busy_stop ;;
+    refine-target)  # the drawing's target outline cut back to its strokes' centre lines (engine.refine.stroke_centre_region)
+      # against the whole fill as before (the engine of REFINE_BEFORE [85a8fe0], extracted from git and put first on
+      # PYTHONPATH), the bundled pair as the app runs it (mirror averaged), N = 0 and 3: the validation split (the choice),
+      # then the test split, in turn, into OUT27/refine_target/{val,test}_{before,after}; then the true-camera diagnostic
+      # (val_true_camera; run it alone: it times)
+      local before=/tmp/sketchmesh-refine-before split
+      rm -rf "$before"; mkdir -p "$before"
+      git archive "${REFINE_BEFORE:-85a8fe0}" engine | tar -x -C "$before"
+      for split in val test; do
+        PYTHONPATH="$before${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split "$split" \
+          --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --out "$OUT27/refine_target/${split}_before"
+        sketchmesh bench refine --data "$DATA2" --split "$split" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
+          --out "$OUT27/refine_target/${split}_after"
+      done
+      rm -rf "$before"
+      # what is left of refinement's 3D cost: the same refinement in each view's true camera, and the engine's camera
+      # against it (the diagnostic; validation split, clean sketches)
+      sketchmesh bench refine --data "$DATA2" --split val --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
+        --styles clean --true-camera --out "$OUT27/refine_target/val_true_camera" ;;
     session-nice)  # is the app's slowness under load its own thread priorities? play_session with the inference
       # worker's and the render thread's nice values (SKETCHMESH_WORKER_NICE:SKETCHMESH_RENDER_NICE) at each of NICE_PAIRS
       # ["10:5 0:5 0:0"; 10:5 the defaults before 2026-11-27], idle and under session-load's busy loops, in turn twice

@@ -207,6 +207,8 @@ def register(commands, bench) -> None:
         "one, voxel IoU, self-intersections and latency. Writes refine.md, refine.json and refine.png to --out.",
     ))
     p.add_argument("--data", required=True, metavar="DIR", help="dataset folder (its test split)")
+    p.add_argument("--split", choices=("test", "val"), default="test",
+                   help="the sketches' split (default test; val to choose a setting before the test split is seen)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for refine.md, refine.json, refine.png")
     p.add_argument("--steps", type=int_in(0, 100), nargs="+", default=[0, 1, 2, 3, 4, 6], metavar="N",
                    help="refinement step counts (default 0 1 2 3 4 6; 0 = unrefined)")

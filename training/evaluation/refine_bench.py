@@ -20,10 +20,14 @@ categories:
   each final mesh, after the N refinement steps, as on the mesh the app exports (and the engine's
   ``repair_folds`` stage); its time counts in the latency, and ``repair_ms_p50`` / ``_p90`` / ``_max``
   report it alone;
+* ``target_iou_gt``: the target outline's own IoU against the true silhouette (how true what refinement aims for is);
 * with ``--true-camera``, ``voxel_iou_true_camera``: the same refinement done in the view's *true*
   framed camera instead of the estimated one -- a diagnostic the engine cannot run (it does not
   know the true shape's framing), which separates what refinement costs in 3D through the
-  camera estimate from what it costs by itself (N = 0: the unrefined mesh, the same either way).
+  camera estimate from what it costs by itself (N = 0: the unrefined mesh, the same either way); and how far
+  the engine's camera is from the true one: ``camera_focal_error`` (mean ``|log(focal / true focal)|``),
+  ``bbox_focal_error`` (the same for the prediction's own bounding-box framing, before the fit) and
+  ``camera_principal_error`` (the principal point's distance, NDC).
 
 Outputs in ``--out``: ``refine.json``, ``refine.md`` (the table) and ``refine.png`` (both IoUs
 against latency, one line per sketch style).
@@ -74,10 +78,12 @@ def run_refine_bench(
     mirror_average: bool = False,
     true_camera: bool = False,
     repair_folds: bool = False,
+    split: str = "test",
 ) -> list[dict]:
     """Measure every (style, N); see the module docstring (``mirror_average``: the engine's, as in the app;
     ``repair_folds``: the fold repair after the refinement, as in the app's exports;
-    ``true_camera``: also refine in the view's true camera, a diagnostic). Returns one record per (style, N)."""
+    ``true_camera``: also refine in the view's true camera, a diagnostic; ``split``: the sketches' split, "test", or
+    "val" to choose a setting before the test split is looked at). Returns one record per (style, N)."""
     from tqdm import tqdm
 
     from engine.camera import Camera
@@ -90,6 +96,7 @@ def run_refine_bench(
         refine_mesh,
         render_silhouette,
         silhouette_iou,
+        sketch_camera,
         target_outline,
     )
     from training.data.dataset import ShapeViewDataset
@@ -106,9 +113,9 @@ def run_refine_bench(
     gt: dict[tuple[str, str], tuple[Mesh, np.ndarray]] = {}
     records: list[dict] = []
     for style in styles:
-        data = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=STYLES[style])
+        data = ShapeViewDataset(Path(data_dir), split, extra_views=0, augment_strength=STYLES[style])
         if len(data) == 0:
-            raise RefineBenchError(f"the test split of {data_dir} is empty")
+            raise RefineBenchError(f"the {split} split of {data_dir} is empty")
         indices = np.arange(len(data))
         if max_samples and max_samples < len(indices):
             indices = np.unique(np.linspace(0, len(data) - 1, max_samples).round().astype(int))
@@ -132,7 +139,15 @@ def run_refine_bench(
             target, source = target_outline(sketch, pred.normals)
             cam = fit_camera(pred.mesh, target)  # what refine_mesh uses when given no camera
             true_cam = Camera(np.eye(3), cam16[9:12], float(cam16[12]), (float(cam16[13]), float(cam16[14])))
+            cam_errors = {k: float("nan") for k in ("camera_focal_error", "bbox_focal_error", "camera_principal_error")}
+            if true_camera:  # how far the engine's camera (and the prediction's own bounding-box framing) is from the true
+                cam_errors = {
+                    "camera_focal_error": abs(float(np.log(cam.focal / true_cam.focal))),
+                    "bbox_focal_error": abs(float(np.log(sketch_camera(pred.mesh).focal / true_cam.focal))),
+                    "camera_principal_error": float(np.hypot(*np.subtract(cam.principal, true_cam.principal))),
+                }
             gt_sil = it["silhouette"][0].numpy() > 0.5
+            target_iou = silhouette_iou(target, gt_sil)  # how true the target itself is
             for n in steps:
                 t1 = time.perf_counter()
                 res = refine_mesh(pred.mesh, target, n, camera=cam)
@@ -154,7 +169,8 @@ def run_refine_bench(
                     oracle_world = Mesh(world_vertices(np.asarray(oracle.vertices, np.float64), cam16), oracle.faces)
                     rec["voxel_iou_true_camera"] = _pair_metrics(oracle_world, gmesh, gvox, voxel_resolution,
                                                                  voxel_surface)["voxel_iou"]
-                rec.update(category=it["category"], sil_iou_target=silhouette_iou(sil, target),
+                rec.update(cam_errors)
+                rec.update(category=it["category"], sil_iou_target=silhouette_iou(sil, target), target_iou_gt=target_iou,
                            sil_iou_gt=silhouette_iou(sil_true, gt_sil), target_is_drawing=source == "drawing",
                            warning=res.warning is not None and n > 0, note=res.note is not None and n > 0,
                            self_intersections=float(count_intersections(mesh)) if self_intersections else float("nan"))
@@ -170,6 +186,8 @@ def run_refine_bench(
                 "sil_iou_gt": _mean_over_categories(rs, "sil_iou_gt"),
                 "voxel_iou": _mean_over_categories(rs, "voxel_iou"),
                 "voxel_iou_true_camera": _mean_over_categories(rs, "voxel_iou_true_camera") if true_camera else None,
+                **{k: _mean_over_categories(rs, k) if true_camera else None
+                   for k in ("camera_focal_error", "bbox_focal_error", "camera_principal_error")},
                 "chamfer_l1": _mean_over_categories(rs, "chamfer_l1"),
                 "refine_ms_p50": float(np.percentile(refine_ms[n], 50)),
                 "refine_ms_p90": float(np.percentile(refine_ms[n], 90)),
@@ -181,6 +199,8 @@ def run_refine_bench(
                 "warnings": int(sum(r["warning"] for r in rs)),
                 "notes": int(sum(r["note"] for r in rs)),
                 "target_is_drawing": float(np.mean([r["target_is_drawing"] for r in rs])),
+                "target_iou_gt": _mean_over_categories(rs, "target_iou_gt"),
+                "split": split,
                 "samples": len(rs),
                 "threads": threads,
                 "mirror_average": bool(mirror_average),
@@ -244,7 +264,7 @@ def main_refine_bench(args: argparse.Namespace) -> int:
                                threads=args.threads, styles=tuple(args.styles),
                                self_intersections=not args.no_intersections, progress=not args.quiet,
                                voxel_surface=not args.voxel_centres, mirror_average=args.mirror_average,
-                               true_camera=args.true_camera, repair_folds=args.repair_folds)
+                               true_camera=args.true_camera, repair_folds=args.repair_folds, split=args.split)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     table = markdown_table(records)
@@ -254,7 +274,15 @@ def main_refine_bench(args: argparse.Namespace) -> int:
         repair = "on, after the refinement (" + "; ".join(
             f"{r['style']} N = {r['steps']}: {r['repair_ms_p50']:.1f} / {r['repair_ms_p90']:.1f} / "
             f"{r['repair_ms_max']:.0f} ms p50 / p90 / max" for r in records) + ")"
-    loads = (f"mirror averaging {'on' if args.mirror_average else 'off'}; "
+    targets = "; ".join(f"{r['style']} {r['target_iou_gt']:.3f} (the drawing for {100 * r['target_is_drawing']:.0f} %)"
+                        for r in records if r["steps"] == records[0]["steps"])
+    if args.true_camera:
+        targets += "; the engine's camera against the true one (mean |log focal ratio| / the prediction's bounding-box " \
+                   "framing's / principal point off by, NDC): " + "; ".join(
+                       f"{r['style']} {r['camera_focal_error']:.3f} / {r['bbox_focal_error']:.3f} / "
+                       f"{r['camera_principal_error']:.3f}" for r in records if r["steps"] == records[0]["steps"])
+    loads = (f"{args.split} split; the target outline against the true silhouette, IoU: {targets}; "
+             f"mirror averaging {'on' if args.mirror_average else 'off'}; "
              f"fold repair {repair}; "
              f"load average (1 min) at the start {load_start:.2f}, at the end {load:.2f}")
     atomic_write_text(out / "refine.md", table + f"\n{loads}\n")
