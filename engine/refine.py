@@ -56,10 +56,10 @@ The target outline (:func:`target_outline`)
     strokes' centre lines, where the contours lie (:func:`stroke_centre_region`). Where the drawing is not closed
     (the fill is not much more than the ink itself, or disagrees with the generator's
     silhouette) the generator's silhouette (normal-image pixels off the background) is the
-    target instead. On the proc10 test split this picks the drawing for 94 % of clean sketches
-    (IoU 0.93 against the true outline; the fill alone 0.95, the generator's silhouette 0.85)
-    and for 59 % of strongly augmented ones (0.77; their leaking fills alone 0.62, the
-    generator 0.78).
+    target instead. On DATA2's validation split (``sketchmesh bench refine --split val``, which
+    reports the target's own IoU against the true silhouette) this picks the drawing for 98 % of
+    clean sketches, the target then at IoU 0.962 (0.910 before the cut back to the centre lines),
+    and for 72 % of strongly augmented ones (0.759 in all).
 
 Failure modes never crash and never give NaN: an empty or tiny target, a mesh behind the
 camera, a non-finite result, or a refinement that lowers the silhouette IoU returns the
@@ -334,8 +334,8 @@ def stroke_centre_region(fill: np.ndarray) -> np.ndarray:
     The contours of a shape lie on the centre lines of the strokes that draw them (the data generator draws
     the projected contours, the engine redraws a user's strokes about their centre lines, both
     :data:`engine.contract.SKETCH_STROKE_WIDTH_PX` wide at :data:`engine.contract.SKETCH_SIZE`), so the fill, which
-    takes the whole outline stroke in, overshoots the outline by half a stroke all round: on clean validation
-    drawings by 10.5 % of its area (IoU 0.914 against the true silhouette; 0.967 cut back). The outer half stroke is
+    takes the whole outline stroke in, overshoots the outline by half a stroke all round (the target's IoU against the
+    true silhouette on clean validation drawings 0.910 uncut, 0.962 cut back: ``reproduce_models.sh refine-target``). The outer half stroke is
     eroded away, by :data:`STROKE_HALF_WIDTH_PX` scaled to the mask's size (nothing where that is under half a
     pixel); a fill too thin to survive the erosion is returned as it is.
     """
