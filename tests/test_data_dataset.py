@@ -181,6 +181,38 @@ def test_shards_merge_into_the_full_dataset(built, tmp_path):
         ds.merge_datasets(tmp_path / "m2", [tmp_path / "empty"])
 
 
+def test_cli_builds_only_the_splits_asked_for_and_completes_them_later(tmp_path, capsys):
+    # what a bare machine needs first for evaluation (val, test) in a fifth of the time; a later full build into the
+    # same folder renders only the rest, and the evaluation shapes are the ones a full build makes
+    from sketchmesh.cli import main
+    from training.data.shapes import split_of
+
+    n = 20
+    want = {f"bench_{i:05d}" for i in range(n) if split_of("bench", i) in ("val", "test")}
+    assert 0 < len(want) < n  # the hash split puts some of 20 shapes in each
+    out = tmp_path / "d"
+    flags = ["data", "--source", "procedural", "--shapes-per-category", str(n), "--categories", "bench", "--views", "2",
+             "--size", "64", "--small-size", "32", "--out", str(out), "--no-progress"]
+    assert main([*flags, "--splits", "val", "test"]) == 0
+    manifest = json.loads((out / ds.MANIFEST).read_text())
+    assert {s["shape_id"] for s in manifest["shapes"]} == want
+    assert {s["split"] for s in manifest["shapes"]} <= {"val", "test"}
+    capsys.readouterr()
+    assert main(flags) == 0
+    assert f"{n - len(want)} shapes rendered, {len(want)} already complete" in capsys.readouterr().out
+    assert len(json.loads((out / ds.MANIFEST).read_text())["shapes"]) == n
+    job = next(j for j in ds.make_jobs("procedural", n, ["bench"]) if j.shape_id in want)
+    settings = ds.BuildSettings(size=64, small_size=32, num_azimuths=2, elevations=(30.0,))
+    ds.build_dataset(tmp_path / "one", [job], settings, progress=False)
+    name = f"shapes/bench/{job.shape_id}.npz"
+    with np.load(out / name) as z1, np.load(tmp_path / "one" / name) as z2:
+        assert np.array_equal(z1["sketch"], z2["sketch"]) and np.array_equal(z1["normals64"], z2["normals64"])
+    assert split_of("bench", 0) == "train"  # shape 0 alone has no val shape: a clear error, not an empty dataset
+    capsys.readouterr()
+    assert main([*flags, "--shapes-per-category", "1", "--splits", "val"]) != 0
+    assert "no shapes in the split(s) val" in capsys.readouterr().err
+
+
 def test_cli_build_preview_merge_and_bad_input(tmp_path, capsys):
     import cv2
 

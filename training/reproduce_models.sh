@@ -502,6 +502,11 @@ step() {
     data-v2)  # 1,300 shapes x 12 azimuths x 4 elevations (0, 15, 30, 45 degrees): 62,400 views
       sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 \
         --workers 2 --out "$DATA2" ;;
+    data-v2-eval)  # data-v2's validation and test shapes only, what every measurement reads (eval, bench refine, compare,
+      # tradeoff): the first step on a bare machine, a fifth of data-v2's rendering; data-v2 later adds the training
+      # shapes to the same folder
+      sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 \
+        --splits val test --workers 2 --out "$DATA2" ;;
     normals-v2)  # the resize generator, width 16 (one thread)
       sketchmesh train normals --data "$DATA2" --out "$RUNS2/normals16" --base-channels 16 --batch 4 \
         --iters "$GEN2_ITERS" --threads 1 --ckpt-every 100 ;;
