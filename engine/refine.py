@@ -56,7 +56,8 @@ The target outline (:func:`target_outline`)
     strokes' centre lines, where the contours lie (:func:`stroke_centre_region`). Where the drawing is not closed
     (the fill is not much more than the ink itself, or disagrees with the generator's
     silhouette) the generator's silhouette (normal-image pixels off the background) is the
-    target instead. On DATA2's validation split (``sketchmesh bench refine --split val``, which
+    target instead; :func:`refine_prediction` (the engine's, the app's) does not refine to it and leaves the
+    mesh as predicted, with a warning. On DATA2's validation split (``sketchmesh bench refine --split val``, which
     reports the target's own IoU against the true silhouette) this picks the drawing for 98 % of
     clean sketches, the target then at IoU 0.962 (0.910 before the cut back to the centre lines),
     and for 72 % of strongly augmented ones (0.759 in all).
@@ -764,8 +765,21 @@ def refine_prediction(
     steps: int = DEFAULT_STEPS,
     **kwargs,
 ) -> RefineResult:
-    """:func:`refine_mesh` towards :func:`target_outline` of the sketch (and generator normals)."""
+    """:func:`refine_mesh` towards the drawn outline (:func:`target_outline` of the sketch and generator normals).
+
+    A drawing without a closed outline (:func:`target_outline` falls back to the generator's silhouette) has no drawn
+    outline to refine to: the mesh stays as predicted, with a warning saying so. Refining it to the generator's
+    silhouette instead, as before 2026-11-28, moved strongly augmented sketches' meshes away from the true shape in
+    3D and in outline alike (``reproduce_models.sh refine-open``): the predictor has already read that silhouette,
+    and the estimated camera misplaces it.
+    """
     if steps == 0:
         return refine_mesh(mesh, np.zeros((16, 16), bool), 0)
-    target, _ = target_outline(sketch, normals)
+    target, source = target_outline(sketch, normals)
+    if source != "drawing":
+        return RefineResult(mesh, 0, float("nan"), float("nan"), OPEN_OUTLINE_WARNING)
     return refine_mesh(mesh, target, steps, **kwargs)
+
+
+OPEN_OUTLINE_WARNING = "refinement skipped: the drawing has no closed outline to refine to; the mesh is unrefined"
+""":func:`refine_prediction`'s warning for a drawing without a closed outline (the app shows it in the status bar)."""

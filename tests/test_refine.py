@@ -21,6 +21,7 @@ from engine.postprocess import mesh_stats
 from engine.preprocess import rasterize_strokes
 from engine.refine import (
     MAX_STEPS,
+    OPEN_OUTLINE_WARNING,
     fill_drawing,
     fit_camera,
     pixel_coords,
@@ -181,6 +182,24 @@ def test_stability_sweep_gives_a_finite_closed_mesh_or_the_unrefined_one(target_
             assert res.mesh is mesh, (target_name, mesh_name)
         else:
             assert np.isfinite(res.iou_after) and res.iou_after >= res.iou_before, (target_name, mesh_name)
+
+
+def test_only_a_closed_drawn_outline_is_refined_to():
+    # the engine refines to the drawing's outline; an open drawing (its target would be the generator's silhouette)
+    # keeps the predicted mesh and says why
+    mesh = icosphere(3, 0.5)
+    normals = np.zeros((SIZE, SIZE, 3), np.float32)
+    normals[_ellipse(100, 50)] = (0.5, 0.5, 1.0)  # the generator saw an ellipse
+    closed = np.zeros((SIZE, SIZE), np.float32)
+    cv2.ellipse(closed, (128, 128), (100, 50), 0, 0, 360, 1.0, 2)
+    open_arc = np.zeros((SIZE, SIZE), np.float32)
+    cv2.ellipse(open_arc, (128, 128), (100, 50), 0, 0, 200, 1.0, 2)
+    assert target_outline(open_arc, normals)[1] == "generator" and target_outline(closed, normals)[1] == "drawing"
+    skipped = refine_prediction(mesh, open_arc, normals, 3)
+    assert skipped.mesh is mesh and skipped.steps == 0 and skipped.warning == OPEN_OUTLINE_WARNING
+    refined = refine_prediction(mesh, closed, normals, 3)
+    assert refined.warning is None and refined.steps == 3 and refined.iou_after > refined.iou_before
+    assert not np.array_equal(refined.mesh.vertices, mesh.vertices)
 
 
 def test_bad_arguments_are_refused_with_what_was_received():

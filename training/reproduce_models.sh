@@ -369,6 +369,24 @@ for label, rs in rows.items():
 EOF
 }
 
+refine_engines() {  # $1 a folder, $2 and $3 commits ("" for the working tree): bench refine (the bundled pair as the app
+  # runs it, mirror averaged, N = 0 and 3, clean and strong) with the engine of $2 and then of $3, each extracted from git
+  # and put first on PYTHONPATH, in turn, on the validation split (the choice), then the test split, into
+  # $1/{val,test}_{before,after}
+  local split side commit dir
+  for split in val test; do
+    for side in before after; do
+      commit=$2; [ "$side" = after ] && commit=$3
+      dir=/tmp/sketchmesh-engine-$side
+      rm -rf "$dir"; mkdir -p "$dir"
+      [ -n "$commit" ] && git archive "$commit" engine | tar -x -C "$dir"
+      PYTHONPATH="$dir${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split "$split" \
+        --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --out "$1/${split}_$side"
+      rm -rf "$dir"
+    done
+  done
+}
+
 busy_start() {  # two busy loops keep both cores loaded (another job on the artist's laptop) until busy_stop or the
   # script's end (the trap names their pids when it is set, so it works wherever the script stops)
   BUSY_PIDS=()
@@ -1769,24 +1787,22 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       done
       busy_stop ;;
     refine-target)  # the drawing's target outline cut back to its strokes' centre lines (engine.refine.stroke_centre_region)
-      # against the whole fill as before (the engine of REFINE_BEFORE [85a8fe0], extracted from git and put first on
-      # PYTHONPATH), the bundled pair as the app runs it (mirror averaged), N = 0 and 3: the validation split (the choice),
-      # then the test split, in turn, into OUT27/refine_target/{val,test}_{before,after}; then the true-camera diagnostic
-      # (val_true_camera; run it alone: it times)
-      local before=/tmp/sketchmesh-refine-before split
-      rm -rf "$before"; mkdir -p "$before"
-      git archive "${REFINE_BEFORE:-85a8fe0}" engine | tar -x -C "$before"
-      for split in val test; do
-        PYTHONPATH="$before${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split "$split" \
-          --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --out "$OUT27/refine_target/${split}_before"
-        sketchmesh bench refine --data "$DATA2" --split "$split" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
-          --out "$OUT27/refine_target/${split}_after"
-      done
-      rm -rf "$before"
+      # against the whole fill as before: the engines of REFINE_BEFORE [85a8fe0] and REFINE_AFTER [b16a71d, before
+      # refine-open's change] by refine_engines into OUT27/refine_target; then the true-camera diagnostic with
+      # REFINE_AFTER's engine (val_true_camera; run it alone: it times)
+      refine_engines "$OUT27/refine_target" "${REFINE_BEFORE:-85a8fe0}" "${REFINE_AFTER:-b16a71d}"
       # what is left of refinement's 3D cost: the same refinement in each view's true camera, and the engine's camera
-      # against it (the diagnostic; validation split, clean sketches)
-      sketchmesh bench refine --data "$DATA2" --split val --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
-        --styles clean --true-camera --out "$OUT27/refine_target/val_true_camera" ;;
+      # against it (the diagnostic with REFINE_AFTER's engine; validation split, clean sketches)
+      rm -rf /tmp/sketchmesh-engine-after; mkdir -p /tmp/sketchmesh-engine-after
+      git archive "${REFINE_AFTER:-b16a71d}" engine | tar -x -C /tmp/sketchmesh-engine-after
+      PYTHONPATH="/tmp/sketchmesh-engine-after${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split val \
+        --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --styles clean --true-camera \
+        --out "$OUT27/refine_target/val_true_camera"
+      rm -rf /tmp/sketchmesh-engine-after ;;
+    refine-open)  # a drawing without a closed outline left unrefined (engine.refine.refine_prediction) against refined to
+      # the generator's silhouette as before: the engine of REFINE_OPEN_BEFORE [b16a71d] and today's by refine_engines
+      # into OUT27/refine_open (run it alone: it times)
+      refine_engines "$OUT27/refine_open" "${REFINE_OPEN_BEFORE:-b16a71d}" "" ;;
     session-nice)  # is the app's slowness under load its own thread priorities? play_session with the inference
       # worker's and the render thread's nice values (SKETCHMESH_WORKER_NICE:SKETCHMESH_RENDER_NICE) at each of NICE_PAIRS
       # ["10:5 0:5 0:0"; 10:5 the defaults before 2026-11-27], idle and under session-load's busy loops, in turn twice

@@ -93,7 +93,7 @@ def run_refine_bench(
     from engine.refine import (
         fit_camera,
         pixel_coords,
-        refine_mesh,
+        refine_prediction,
         render_silhouette,
         silhouette_iou,
         sketch_camera,
@@ -150,7 +150,7 @@ def run_refine_bench(
             target_iou = silhouette_iou(target, gt_sil)  # how true the target itself is
             for n in steps:
                 t1 = time.perf_counter()
-                res = refine_mesh(pred.mesh, target, n, camera=cam)
+                res = refine_prediction(pred.mesh, sketch, pred.normals, n, camera=cam)  # the engine's policy
                 refine_ms[n].append((time.perf_counter() - t1) * 1e3)
                 mesh = res.mesh
                 t2 = time.perf_counter()
@@ -165,7 +165,7 @@ def run_refine_bench(
                 rec = _pair_metrics(world, gmesh, gvox, voxel_resolution, voxel_surface)
                 rec["voxel_iou_true_camera"] = float("nan")
                 if true_camera:  # the diagnostic: the same steps in the camera that drew the sketch
-                    oracle = refine_mesh(pred.mesh, target, n, camera=true_cam).mesh
+                    oracle = refine_prediction(pred.mesh, sketch, pred.normals, n, camera=true_cam).mesh
                     oracle_world = Mesh(world_vertices(np.asarray(oracle.vertices, np.float64), cam16), oracle.faces)
                     rec["voxel_iou_true_camera"] = _pair_metrics(oracle_world, gmesh, gvox, voxel_resolution,
                                                                  voxel_surface)["voxel_iou"]
