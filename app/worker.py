@@ -39,6 +39,7 @@ import shiboken6
 from PySide6.QtCore import QElapsedTimer, QObject, Qt, QThread, QTimer, Signal, Slot
 from PySide6.QtGui import QImage
 
+from engine.cliutil import int_from_env
 from engine.errors import SketchmeshError
 
 DEFAULT_DEBOUNCE_MS = 100
@@ -57,12 +58,8 @@ def nice_from_env(name: str, default: int) -> int:
     Raises:
         SketchmeshError: ``name`` is set but not a whole number from 0 to MAX_NICE.
     """
-    value = os.environ.get(name, "").strip()
-    if not value:
-        return default
-    if not (value.isdigit() and int(value) <= MAX_NICE):
-        raise SketchmeshError(f"{name} must be a whole number from 0 (off) to {MAX_NICE}, got {value!r}")
-    return int(value)
+    chosen = int_from_env(name, 0, MAX_NICE, " (0 leaves the priority as it is)")
+    return default if chosen is None else chosen
 
 
 WORKER_NICE_ENV = "SKETCHMESH_WORKER_NICE"

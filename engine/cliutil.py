@@ -56,6 +56,21 @@ def int_in(lo: int, hi: int) -> Callable[[str], int]:
     return parse
 
 
+def int_from_env(name: str, lo: int, hi: int, what: str = "") -> int | None:
+    """The whole number environment variable ``name`` sets, in [lo, hi]; None where it is unset or blank.
+
+    Raises:
+        SketchmeshError: ``name`` is set but not a whole number from ``lo`` to ``hi`` (``what`` follows the range in
+            the message, e.g. " threads").
+    """
+    value = os.environ.get(name, "").strip()
+    if not value:
+        return None
+    if not (value.isdigit() and lo <= int(value) <= hi):
+        raise SketchmeshError(f"{name} must be a whole number from {lo} to {hi}{what}, got {value!r}")
+    return int(value)
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer > 0."""
     try:

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from engine import contract as C
-from engine.errors import ModelError, SketchmeshError
+from engine.cliutil import int_from_env
+from engine.errors import ModelError
 from engine.icosphere import TEMPLATE_RADIUS, level_for_vertex_count
 
 MAX_DEFAULT_THREADS = 8
@@ -58,12 +59,8 @@ def default_threads() -> int:
     Raises:
         SketchmeshError: ``SKETCHMESH_THREADS`` is set but not a whole number from 1 to MAX_THREADS_ENV.
     """
-    value = os.environ.get(THREADS_ENV, "").strip()
-    if value:
-        if not (value.isdigit() and 1 <= int(value) <= MAX_THREADS_ENV):
-            raise SketchmeshError(f"{THREADS_ENV} must be a whole number of threads from 1 to {MAX_THREADS_ENV}, got {value!r}")
-        return int(value)
-    return max(1, min(physical_cores(), MAX_DEFAULT_THREADS))
+    chosen = int_from_env(THREADS_ENV, 1, MAX_THREADS_ENV, " (threads)")
+    return chosen if chosen is not None else max(1, min(physical_cores(), MAX_DEFAULT_THREADS))
 
 
 def resolve_models_dir(models_dir: str | os.PathLike | None) -> Path:

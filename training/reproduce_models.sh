@@ -369,21 +369,25 @@ for label, rs in rows.items():
 EOF
 }
 
+with_engine() {  # $1 a commit ("" for the working tree), then a command: the command with that commit's engine/
+  # (extracted from git) first on PYTHONPATH, so a step can measure an earlier engine beside today's
+  local dir rc=0
+  dir=$(mktemp -d /tmp/sketchmesh-engine-XXXXXX)
+  [ -n "$1" ] && git archive "$1" engine | tar -x -C "$dir"
+  PYTHONPATH="$dir${PYTHONPATH:+:$PYTHONPATH}" "${@:2}" || rc=$?
+  rm -rf "$dir"
+  return "$rc"
+}
+
 refine_engines() {  # $1 a folder, $2 and $3 commits ("" for the working tree): bench refine (the bundled pair as the app
-  # runs it, mirror averaged, N = 0 and 3, clean and strong) with the engine of $2 and then of $3, each extracted from git
-  # and put first on PYTHONPATH, in turn, on the validation split (the choice), then the test split, into
-  # $1/{val,test}_{before,after}
-  local split side commit dir
+  # runs it, mirror averaged, N = 0 and 3, clean and strong) with the engine of $2 and then of $3 (with_engine), in turn,
+  # on the validation split (the choice), then the test split, into $1/{val,test}_{before,after}
+  local split
   for split in val test; do
-    for side in before after; do
-      commit=$2; [ "$side" = after ] && commit=$3
-      dir=/tmp/sketchmesh-engine-$side
-      rm -rf "$dir"; mkdir -p "$dir"
-      [ -n "$commit" ] && git archive "$commit" engine | tar -x -C "$dir"
-      PYTHONPATH="$dir${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split "$split" \
-        --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --out "$1/${split}_$side"
-      rm -rf "$dir"
-    done
+    with_engine "$2" sketchmesh bench refine --data "$DATA2" --split "$split" --max-samples "$SAMPLES2" --mirror-average \
+      --steps 0 3 --out "$1/${split}_before"
+    with_engine "$3" sketchmesh bench refine --data "$DATA2" --split "$split" --max-samples "$SAMPLES2" --mirror-average \
+      --steps 0 3 --out "$1/${split}_after"
   done
 }
 
@@ -1793,12 +1797,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       refine_engines "$OUT27/refine_target" "${REFINE_BEFORE:-85a8fe0}" "${REFINE_AFTER:-b16a71d}"
       # what is left of refinement's 3D cost: the same refinement in each view's true camera, and the engine's camera
       # against it (the diagnostic with REFINE_AFTER's engine; validation split, clean sketches)
-      rm -rf /tmp/sketchmesh-engine-after; mkdir -p /tmp/sketchmesh-engine-after
-      git archive "${REFINE_AFTER:-b16a71d}" engine | tar -x -C /tmp/sketchmesh-engine-after
-      PYTHONPATH="/tmp/sketchmesh-engine-after${PYTHONPATH:+:$PYTHONPATH}" sketchmesh bench refine --data "$DATA2" --split val \
-        --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --styles clean --true-camera \
-        --out "$OUT27/refine_target/val_true_camera"
-      rm -rf /tmp/sketchmesh-engine-after ;;
+      with_engine "${REFINE_AFTER:-b16a71d}" sketchmesh bench refine --data "$DATA2" --split val --max-samples "$SAMPLES2" \
+        --mirror-average --steps 0 3 --styles clean --true-camera --out "$OUT27/refine_target/val_true_camera" ;;
     refine-open)  # a drawing without a closed outline left unrefined (engine.refine.refine_prediction) against refined to
       # the generator's silhouette as before: the engine of REFINE_OPEN_BEFORE [b16a71d] and today's by refine_engines
       # into OUT27/refine_open (run it alone: it times)
