@@ -193,6 +193,26 @@ def test_split_is_deterministic_disjoint_and_about_80_10_10():
     assert sum(len(x) for x in by_split.values()) == len(large) == 80
 
 
+def test_first_shape_gives_the_shapes_after_a_smaller_build_and_only_them():
+    # `data --first-shape N` renders shapes no build of N per category holds, with the ids, splits and geometry
+    # a build from 0 gives them (what a pass on fresh shapes needs); a negative start or a mesh folder is refused
+    from training.data.dataset import DatasetError, make_jobs
+
+    first = make_jobs("procedural", 6, ["lamp", "car"])
+    later = make_jobs("procedural", 4, ["lamp", "car"], first_shape=6)
+    both = make_jobs("procedural", 10, ["lamp", "car"])
+    key = [(j.category, j.shape_id, j.split, j.index) for j in later]
+    assert key == [(j.category, j.shape_id, j.split, j.index) for j in both if j.index >= 6]
+    assert not {j.shape_id for j in first} & {j.shape_id for j in later}
+    assert [j.index for j in later if j.category == "lamp"] == [6, 7, 8, 9]
+    a, b = shapes.make_shape("lamp", later[0].index), shapes.make_shape("lamp", 6)
+    assert np.array_equal(a.vertices, b.vertices)
+    with pytest.raises(DatasetError, match="--first-shape must be >= 0"):
+        make_jobs("procedural", 2, ["lamp"], first_shape=-1)
+    with pytest.raises(DatasetError, match="procedural source only"):
+        make_jobs("meshes:/nonexistent", 2, first_shape=3)
+
+
 def test_bad_category_and_index_are_rejected():
     with pytest.raises(ValueError, match="unknown category"):
         shapes.make_shape("spaceship", 0)

@@ -130,6 +130,10 @@
 # The twenty-first candidate, the GPU stage's g25b (chosen over the twentieth on validation: out/v26/choice.txt): all-v26,
 #   cost-both-v26, session-v26, logs-v26 and overfit-v26 into OUT26 [out/v26] (its retrieval floor is still DATA40's:
 #   the 600-shape data it trained on was built on the lent machine only).
+# A CPU pass on shapes the twenty-first never saw (no GPU lent, 2026-11-28): data-v27 renders DATA70 [data/fresh600v4]
+#   (shapes 600-1199 of each category, the train split, 4 views each), generated-v27 and generated-mirror-v27 the
+#   generator's images of them, import-v27 the twenty-first back from git as a run (RUNS27 [runs/v27]),
+#   predictor-v27 trains it on them, val-*-v27 sets the run against its start (OUT27 [out/v27]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -214,6 +218,8 @@ RUNS25=${RUNS25:-runs/v25}
 OUT25=${OUT25:-out/v25}
 OUT26=${OUT26:-out/v26}
 OUT27=${OUT27:-out/v27}
+RUNS27=${RUNS27:-runs/v27}
+DATA70=${DATA70:-data/fresh600v4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1803,6 +1809,31 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # the generator's silhouette as before: the engine of REFINE_OPEN_BEFORE [b16a71d] and today's by refine_engines
       # into OUT27/refine_open (run it alone: it times)
       refine_engines "$OUT27/refine_open" "${REFINE_OPEN_BEFORE:-b16a71d}" "" ;;
+    data-v27)  # DATA70 [data/fresh600v4]: shapes 600-1199 of each category (`data --first-shape 600`: none of them in
+      # DATA60, whose 600 per category the twenty-first trained on), their train split only, 4 of the 48 grid views
+      # each as the GPU stage rendered; about 20 min on 2 cores; resumes
+      sketchmesh data --source procedural --first-shape 600 --shapes-per-category 600 --views 12 --elevations 0 15 30 45 \
+        --views-per-shape 4 --splits train --workers 2 --out "$DATA70" ;;
+    generated-v27|generated-mirror-v27)  # generated-v26's images (the same generator and settings) on DATA70; resume
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$DATA70" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 ;;
+    import-v27)  # the twenty-first pair (git TWENTYFIRST [2a2eadb]) into OUT27/models_twentyfirst, its predictor back
+      # as a run (RUNS27/twentyfirst/predictor; batch norms calibrated on DATA70's generated images), and the fifth
+      # pair's runs (import-v8: eval_against's generator run)
+      [ -f "$RUNS8/fifth/generator/config.json" ] || step import-v8
+      models_from_git "${TWENTYFIRST:-2a2eadb}" "$OUT27/models_twentyfirst"
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || \
+        sketchmesh import-models "$OUT27/models_twentyfirst" --out "$RUNS27/twentyfirst" --only predictor --data "$DATA70" --threads 2 ;;
+    predictor-v27)  # the twenty-first trained on DATA70 by the CPU recipe (recipe20) along a new cosine into
+      # RUNS27/v27_fresh: V27_ITERS [3000], V27_MINUTES [50] at most, two threads; resumes
+      [ -f "$DATA70/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA70: run data-v27 generated-v27 generated-mirror-v27 first" >&2; exit 1; }
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_fresh" "${V27_ITERS:-3000}" "${V27_MINUTES:-50}" 2 ;;
+    val-v27|val-strong-v27|val-side-v27)  # predictor-v27's run against its start, the twenty-first, plain and +mirror,
+      # validation split (OUT27/val_*)
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT27/val_${EVAL_NAME#eval_}" "$RUNS27/v27_fresh" "$RUNS27/twentyfirst/predictor" ;;
     session-nice)  # is the app's slowness under load its own thread priorities? play_session with the inference
       # worker's and the render thread's nice values (SKETCHMESH_WORKER_NICE:SKETCHMESH_RENDER_NICE) at each of NICE_PAIRS
       # ["10:5 0:5 0:0"; 10:5 the defaults before 2026-11-27], idle and under session-load's busy loops, in turn twice

@@ -48,6 +48,9 @@ def _add_build_flags(p: argparse.ArgumentParser, required_out: bool) -> None:
     p.add_argument("--out", required=required_out, default=None, help="dataset folder to write")
     p.add_argument("--shapes-per-category", type=positive_int, default=None,
                    help="shapes per category (procedural default 10; other sources: at most this many)")
+    p.add_argument("--first-shape", type=int_in(0, 10**7), default=0, metavar="I",
+                   help="procedural source: each category's shapes start at index I (default 0), so a build from "
+                        "I = N holds only shapes that a build of N per category does not")
     p.add_argument("--categories", nargs="+", default=None, metavar="NAME", help="only these categories")
     p.add_argument("--views", type=positive_int, default=24, help="azimuths per elevation (default 24)")
     p.add_argument("--elevations", type=_elevation, nargs="+", default=[30.0], metavar="DEG",
@@ -187,7 +190,7 @@ def cmd_build(args: argparse.Namespace) -> int:
         n_categories = len(set(args.categories)) if args.categories else len(CATEGORIES)
         n_shapes = (10 if args.shapes_per_category is None else args.shapes_per_category) * n_categories
         check_build_request(args.out, -(-n_shapes // shard[1]), settings, args.workers)
-    jobs = make_jobs(args.source, args.shapes_per_category, args.categories)
+    jobs = make_jobs(args.source, args.shapes_per_category, args.categories, first_shape=args.first_shape)
     if not jobs:
         raise DataCommandError(f"--source {args.source} has no shapes to render")
     if args.splits:

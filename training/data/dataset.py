@@ -84,9 +84,18 @@ def parse_source(source: str) -> tuple[str, str]:
     return kind, path
 
 
-def make_jobs(source: str, shapes_per_category: int | None = None, categories: Sequence[str] | None = None) -> list[Job]:
-    """Every shape of a source, sorted (category, shape_id). Raises DatasetError / MeshInputError on bad sources."""
+def make_jobs(source: str, shapes_per_category: int | None = None, categories: Sequence[str] | None = None,
+              first_shape: int = 0) -> list[Job]:
+    """Every shape of a source, sorted (category, shape_id). Raises DatasetError / MeshInputError on bad sources.
+
+    ``first_shape`` (procedural only): the shapes of each category start at this index, so a build from index N
+    holds shapes no build of N per category holds (ids and splits are per index, as in a build from 0).
+    """
     kind, path = parse_source(source)
+    if first_shape < 0:
+        raise DatasetError(f"--first-shape must be >= 0, got {first_shape}")
+    if first_shape and kind != "procedural":
+        raise DatasetError(f"--first-shape is for the procedural source only, not {source!r}")
     if kind == "procedural":
         from training.data.shapes import CATEGORIES, shape_id, split_of
 
@@ -97,7 +106,8 @@ def make_jobs(source: str, shapes_per_category: int | None = None, categories: S
         bad = sorted(set(cats) - set(CATEGORIES))
         if bad:
             raise DatasetError(f"unknown categories {bad}; expected some of {', '.join(CATEGORIES)}")
-        return [Job(c, shape_id(c, i), split_of(c, i), "procedural", index=i) for c in cats for i in range(n)]
+        return [Job(c, shape_id(c, i), split_of(c, i), "procedural", index=i)
+                for c in cats for i in range(first_shape, first_shape + n)]
     from training.data.loaders import scan_mesh_folder, scan_shapenet
 
     records = scan_shapenet(path, categories) if kind == "shapenet" else scan_mesh_folder(path)
