@@ -312,7 +312,7 @@ pass40() {  # predictor-vN-more's runs on DATA40 in RUNS24 (N = $1: 24 or 25): P
   return 0
 }
 
-candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19, v20, v21, v22, v23, v24, v25 or v26): CAND_RUN its run, CAND_BASE the run its
+candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v19, v20, v21, v22, v23, v24, v25, v26 or v27): CAND_RUN its run, CAND_BASE the run its
   # test figures are measured against, CAND_OUT its folder, CAND_NAME its short name, CAND_PREV the commit whose
   # bundled pair compare-* sets beside it (as CAND_PREV_NAME), CAND_RETRIEVAL the dataset whose train split it saw
   # (where compare-* searches for retrieval; DATA2 unless set)
@@ -339,6 +339,8 @@ candidate() {  # the shipped candidate of step $1 (its suffix: v15, v17, v18, v1
          CAND_PREV=${NINETEENTH:-6dc2126} CAND_PREV_NAME=nineteenth CAND_RETRIEVAL=$DATA40 ;;
     v26) CAND_RUN=$RUNS25/${V26_RUN:-g25b} CAND_BASE=$RUNS24/v24_more CAND_OUT=$OUT26 CAND_NAME=v26 \
          CAND_PREV=${TWENTIETH:-af7d5fe} CAND_PREV_NAME=twentieth CAND_RETRIEVAL=$DATA40 ;;
+    v27) CAND_RUN=$RUNS27/v27_fresh CAND_BASE=$RUNS27/twentyfirst/predictor CAND_OUT=$OUT27 CAND_NAME=v27 \
+         CAND_PREV=${TWENTYFIRST:-2a2eadb} CAND_PREV_NAME=twentyfirst CAND_RETRIEVAL=$DATA40 ;;
     *) echo "reproduce_models.sh: no shipped candidate for step '$1'" >&2; exit 2 ;;
   esac
 }
@@ -1343,24 +1345,24 @@ EOF
     eval-v15|eval-strong-v15|eval-side-v15|eval-gt-v15|eval-v17|eval-strong-v17|eval-side-v17|eval-gt-v17|eval-v18|eval-strong-v18|eval-side-v18|eval-gt-v18|eval-v19|eval-strong-v19|eval-side-v19|eval-gt-v19|eval-v20|eval-strong-v20|eval-side-v20|eval-gt-v20|eval-v21|eval-strong-v21|eval-side-v21|eval-gt-v21|eval-v22|eval-strong-v22|eval-side-v22|eval-gt-v22|\
     eval-v23|eval-strong-v23|eval-side-v23|eval-gt-v23|eval-v24|eval-strong-v24|eval-side-v24|eval-gt-v24|\
     eval-v25|eval-strong-v25|eval-side-v25|eval-gt-v25|\
-    eval-v26|eval-strong-v26|eval-side-v26|eval-gt-v26)  # a shipped
+    eval-v26|eval-strong-v26|eval-side-v26|eval-gt-v26|eval-v27|eval-strong-v27|eval-side-v27|eval-gt-v27)  # a shipped
       # candidate (candidate: the eleventh, v15_control, against the tenth; the twelfth, v17_aligned, against the
       # eleventh), plain and +mirror, test split (after the choice on the validation split)
       candidate "$1"; eval_case "$1"; EVAL_EXTRA+=(--mirror-average)
       eval_against test "$CAND_OUT/final/$EVAL_NAME" "$CAND_RUN" "$CAND_BASE" ;;
-    export-v15|export-v17|export-v18|export-v19|export-v20|export-v21|export-v22|export-v23|export-v24|export-v25|export-v26)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
+    export-v15|export-v17|export-v18|export-v19|export-v20|export-v21|export-v22|export-v23|export-v24|export-v25|export-v26|export-v27)  # the candidate as float32, int8 and with float16-stored weights (what ships), beside the
       # generator file
       candidate "$1"
       export_pair "$CAND_RUN" "$CAND_OUT/final" "$OUT8/models_fifth/generator.onnx"
       rm -rf "$CAND_OUT/final/models_fp16"
       sketchmesh export "$CAND_RUN" -o "$CAND_OUT/final/models_fp16" --quantize fp16
       cp "$OUT8/models_fifth/generator.onnx" "$CAND_OUT/final/models_fp16/" ;;
-    cost-v15|cost-v17|cost-v18|cost-v19|cost-v20|cost-v21|cost-v22|cost-v23|cost-v24|cost-v25|cost-v26)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
+    cost-v15|cost-v17|cost-v18|cost-v19|cost-v20|cost-v21|cost-v22|cost-v23|cost-v24|cost-v25|cost-v26|cost-v27)  # every stage of the app's engine, plain and +mirror, the candidate as shipped (float16-stored
       # predictor weights; the variant "fp32" is the models as given) (run it alone: it times)
       candidate "$1"; mkdir -p "$CAND_OUT"
       sketchmesh bench engine --models "$CAND_OUT/final/models_fp16" --threads 2 --variants fp32,fp32+mirror --runs 50 \
         --json "$CAND_OUT/engine_$CAND_NAME.json" ;;
-    tradeoff-v15|tradeoff-v17|tradeoff-v18|tradeoff-v19|tradeoff-v20|tradeoff-v21|tradeoff-v22|tradeoff-v23|tradeoff-v24|tradeoff-v25|tradeoff-v26)  # error against run time: the candidate at each precision, plain and +mirror, and template
+    tradeoff-v15|tradeoff-v17|tradeoff-v18|tradeoff-v19|tradeoff-v20|tradeoff-v21|tradeoff-v22|tradeoff-v23|tradeoff-v24|tradeoff-v25|tradeoff-v26|tradeoff-v27)  # error against run time: the candidate at each precision, plain and +mirror, and template
       # level; NAME-fp16w, the predictor's weights stored in float16 ("fp32": the files as given), +mirror at level 3
       # marked as what the app runs (run it alone: it times)
       candidate "$1"
@@ -1369,27 +1371,27 @@ EOF
         --precisions fp32 fp32+mirror int8-predictor int8-predictor+mirror --levels 2 3 4 \
         --bundled "$CAND_NAME-fp16w:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
         --out "$CAND_OUT/final/tradeoff" ;;
-    compare-v15|compare-v17|compare-v18|compare-v19|compare-v20|compare-v21|compare-v22|compare-v23|compare-v24|compare-v25|compare-v26)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
+    compare-v15|compare-v17|compare-v18|compare-v19|compare-v20|compare-v21|compare-v22|compare-v23|compare-v24|compare-v25|compare-v26|compare-v27)  # the app's own path: the pair bundled before (from git) and the candidate as shipped
       # (float16-stored predictor weights), both +mirror, 39 test shapes x 4 drawings, with retrieval and the template sphere
       candidate "$1"
       models_from_git "$CAND_PREV" "$CAND_OUT/models_$CAND_PREV_NAME"
       sketchmesh eval --models "$CAND_OUT/models_$CAND_PREV_NAME" --models "$CAND_OUT/final/models_fp16" --mirror-average \
         --data "$DATA2" --retrieval-data "${CAND_RETRIEVAL:-$DATA2}" --views 4 --max-samples 39 --threads 2 \
         --out "$CAND_OUT/final/compare" ;;
-    ship-v15|ship-v17|ship-v18|ship-v19|ship-v20|ship-v21|ship-v22|ship-v23|ship-v24|ship-v25|ship-v26)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
+    ship-v15|ship-v17|ship-v18|ship-v19|ship-v20|ship-v21|ship-v22|ship-v23|ship-v24|ship-v25|ship-v26|ship-v27)  # the candidate with its predictor's weights stored in float16 becomes the app's bundled models:
       # the float32 export's accuracy and speed in half its file (no file over 20 MiB in the repository)
       candidate "$1"; SHIP_MODELS=$CAND_OUT/final/models_fp16 step ship-v2 ;;
-    refine-v15|refine-v17|refine-v18|refine-v19|refine-v20|refine-v21|refine-v22|refine-v23|refine-v24|refine-v25|refine-v26)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
+    refine-v15|refine-v17|refine-v18|refine-v19|refine-v20|refine-v21|refine-v22|refine-v23|refine-v24|refine-v25|refine-v26|refine-v27)  # the app's outline refinement on the shipped pair with mirror averaging (after ship-*)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --out "$CAND_OUT/final/refine" ;;
-    repair-v15|repair-v17|repair-v18|repair-v19|repair-v20|repair-v21|repair-v22|repair-v23|repair-v24|repair-v25|repair-v26)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
+    repair-v15|repair-v17|repair-v18|repair-v19|repair-v20|repair-v21|repair-v22|repair-v23|repair-v24|repair-v25|repair-v26|repair-v27)  # the fold repair on the shipped pair (after ship-*), mirror averaged: bench refine at N = 0
       # and 3 with the repair off and on, one after the other on the same idle machine (run it alone: it times)
       candidate "$1"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --steps 0 3 \
         --out "$CAND_OUT/final/repair/off"
       sketchmesh bench refine --data "$DATA2" --max-samples "$SAMPLES2" --mirror-average --repair-folds --steps 0 3 \
         --out "$CAND_OUT/final/repair/on" ;;
-    gallery-v15|gallery-v17|gallery-v18|gallery-v19|gallery-v20|gallery-v21|gallery-v22|gallery-v23|gallery-v24|gallery-v25|gallery-v26)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
+    gallery-v15|gallery-v17|gallery-v18|gallery-v19|gallery-v20|gallery-v21|gallery-v22|gallery-v23|gallery-v24|gallery-v25|gallery-v26|gallery-v27)  # the gallery as the app shows it with the shipped pair (after ship-*), from the side, and
       # as it exports (folds repaired)
       candidate "$1"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average -o "$CAND_OUT/final/gallery.png"
@@ -1397,7 +1399,7 @@ EOF
         -o "$CAND_OUT/final/gallery_side.png"
       sketchmesh gallery --data "$DATA2" --models assets/models --mirror-average --repair-folds \
         -o "$CAND_OUT/final/gallery_repair.png" ;;
-    all-v15|all-v17|all-v18|all-v19|all-v20|all-v21|all-v22|all-v23|all-v24|all-v25|all-v26)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
+    all-v15|all-v17|all-v18|all-v19|all-v20|all-v21|all-v22|all-v23|all-v24|all-v25|all-v26|all-v27)  # after the candidate's training and the choice on the validation split: measured, exported, timed,
       # shipped
       candidate "$1"; SHIP_OUT=$CAND_OUT/final
       local v=${1##*-}
@@ -1700,7 +1702,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       sketchmesh eval "$CAND_RUN" --data "$DATA2" --split test --generator-run "$RUNS8/fifth/generator" \
         --retrieval-data "$CAND_RETRIEVAL" "${EVAL_EXTRA[@]}" --max-samples "$SAMPLES2" --threads 2 \
         --out "$CAND_OUT/final/retrieval_${EVAL_NAME#eval_}" ;;
-    cost-both-v20|cost-both-v21|cost-both-v22|cost-both-v23|cost-both-v24|cost-both-v25|cost-both-v26)  # the pair bundled before (compare-* takes it from git) and the candidate as shipped, the app's
+    cost-both-v20|cost-both-v21|cost-both-v22|cost-both-v23|cost-both-v24|cost-both-v25|cost-both-v26|cost-both-v27)  # the pair bundled before (compare-* takes it from git) and the candidate as shipped, the app's
       # engine with mirror averaging, timed in turn twice each (A B A B) in one window: the machine's speed drifts
       # between windows, and the two predictors are the same network (run it alone: it times)
       candidate "$1"
@@ -1777,7 +1779,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     session-v13)  # the app under the pen with its defaults (mirror averaging and refinement on): three scripted sessions
       # in the real window (Xvfb when headless), reports in OUT13/session (run it alone: it times)
       play_sessions "$OUT13/session" ;;
-    session-v15|session-v17|session-v18|session-v19|session-v20|session-v21|session-v22|session-v23|session-v24|session-v25|session-v26)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
+    session-v15|session-v17|session-v18|session-v19|session-v20|session-v21|session-v22|session-v23|session-v24|session-v25|session-v26|session-v27)  # session-v13 with the shipped pair and today's defaults (mirror averaging, refinement,
       # the export's fold repair): three scripted sessions in the real window, reports in CAND_OUT/session (run it alone:
       # it times)
       candidate "$1"; play_sessions "$CAND_OUT/session" ;;
