@@ -1832,6 +1832,19 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$DATA70/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA70: run data-v27 generated-v27 generated-mirror-v27 first" >&2; exit 1; }
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
       DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_fresh" "${V27_ITERS:-3000}" "${V27_MINUTES:-50}" 2 ;;
+    predictor-v27-low)  # predictor-v27 at a fifth of its peak rate (V27_LOW_LR [2e-5]): the CPU recipe's 1e-4 at batch 32
+      # lost 0.015 on validation against the twenty-first, whose last stage ran at batch 512 (val-*-v27); into
+      # RUNS27/v27_low, V27_LOW_ITERS [1300], V27_LOW_MINUTES [25] at most; resumes
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=${V27_LOW_LR:-2e-5} \
+        TRAIN_DATA=$DATA70 train7 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" "${V27_LOW_ITERS:-1300}" \
+        "${V27_LOW_MINUTES:-25}" 2 ;;
+    val-v27-low|val-strong-v27-low|val-side-v27-low)  # predictor-v27-low's run against predictor-v27's and their start,
+      # plain and +mirror, validation split (OUT27/val_low_*)
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT27/val_low_${EVAL_NAME#eval_}" "$RUNS27/v27_low" "$RUNS27/v27_fresh" "$RUNS27/twentyfirst/predictor" ;;
+    logs-v27)  # predictor-v27's and predictor-v27-low's runs: the losses over their first and last iterations
+      log_summary "$RUNS27" v27_fresh v27_low ;;
     val-v27|val-strong-v27|val-side-v27)  # predictor-v27's run against its start, the twenty-first, plain and +mirror,
       # validation split (OUT27/val_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
