@@ -1839,6 +1839,17 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=${V27_LOW_LR:-2e-5} \
         TRAIN_DATA=$DATA70 train7 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" "${V27_LOW_ITERS:-1300}" \
         "${V27_LOW_MINUTES:-25}" 2 ;;
+    predictor-v27-b512)  # predictor-v27 at the GPU stage's batch (512) and a rate between its two calls' (V27_B512_LR
+      # [1e-4], 10 warm-up steps): is it the batch-32 steps that move the twenty-first off its optimum? Into
+      # RUNS27/v27_b512, V27_B512_ITERS [100], V27_B512_MINUTES [25] at most; resumes
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50 --batch 512 --lr-warmup 10" \
+        TRAIN_LR=${V27_B512_LR:-1e-4} TRAIN_DATA=$DATA70 train7 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_b512" \
+        "${V27_B512_ITERS:-100}" "${V27_B512_MINUTES:-25}" 2 ;;
+    val-v27-b512|val-strong-v27-b512|val-side-v27-b512)  # predictor-v27-b512's run against predictor-v27-low's and
+      # their start, plain and +mirror, validation split (OUT27/val_b512_*)
+      eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      eval_against val "$OUT27/val_b512_${EVAL_NAME#eval_}" "$RUNS27/v27_b512" "$RUNS27/v27_low" "$RUNS27/twentyfirst/predictor" ;;
     val-v27-low|val-strong-v27-low|val-side-v27-low)  # predictor-v27-low's run against predictor-v27's and their start,
       # plain and +mirror, validation split (OUT27/val_low_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
