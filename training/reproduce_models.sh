@@ -1854,8 +1854,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # plain and +mirror, validation split (OUT27/val_low_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
       eval_against val "$OUT27/val_low_${EVAL_NAME#eval_}" "$RUNS27/v27_low" "$RUNS27/v27_fresh" "$RUNS27/twentyfirst/predictor" ;;
-    logs-v27)  # predictor-v27's and predictor-v27-low's runs: the losses over their first and last iterations
-      log_summary "$RUNS27" v27_fresh v27_low ;;
+    logs-v27)  # predictor-v27's, predictor-v27-low's and predictor-v27-b512's runs: the losses over their first and last iterations
+      log_summary "$RUNS27" v27_fresh v27_low v27_b512 ;;
     val-v27|val-strong-v27|val-side-v27)  # predictor-v27's run against its start, the twenty-first, plain and +mirror,
       # validation split (OUT27/val_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
