@@ -295,9 +295,10 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
 }
 
 recipe20() {  # predictor-v19's batch-32 recipe on DATA20 (the larger predictor with the aligned branch, mirror-consistency 50,
-  # peak 1e-4 cosine): train7 from run $1 into run $2, $3 iterations, $4 minutes at most, $5 threads
-  PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=1e-4 TRAIN_DATA=$DATA20 \
-    train7 "$@"
+  # peak 1e-4 cosine): train7 from run $1 into run $2, $3 iterations, $4 minutes at most, $5 threads (RECIPE_LR: another
+  # peak rate; RECIPE_EXTRA: more `train mesh` flags, e.g. --batch)
+  PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50 ${RECIPE_EXTRA:-}" \
+    TRAIN_LR=${RECIPE_LR:-1e-4} TRAIN_DATA=$DATA20 train7 "$@"
 }
 
 more_pass() {  # predictor-vN-more's runs in RUNS20 (N = $1: 20, 21 or 22): MORE_FROM its start, MORE_TO its run
@@ -1836,16 +1837,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # lost 0.015 on validation against the twenty-first, whose last stage ran at batch 512 (val-*-v27); into
       # RUNS27/v27_low, V27_LOW_ITERS [1300], V27_LOW_MINUTES [25] at most; resumes
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
-      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50" TRAIN_LR=${V27_LOW_LR:-2e-5} \
-        TRAIN_DATA=$DATA70 train7 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" "${V27_LOW_ITERS:-1300}" \
-        "${V27_LOW_MINUTES:-25}" 2 ;;
+      RECIPE_LR=${V27_LOW_LR:-2e-5} DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" \
+        "${V27_LOW_ITERS:-1300}" "${V27_LOW_MINUTES:-25}" 2 ;;
     predictor-v27-b512)  # predictor-v27 at the GPU stage's batch (512) and a rate between its two calls' (V27_B512_LR
       # [1e-4], 10 warm-up steps): is it the batch-32 steps that move the twenty-first off its optimum? Into
       # RUNS27/v27_b512, V27_B512_ITERS [100], V27_B512_MINUTES [25] at most; resumes
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
-      PRED_ARCH="$BIG_ARCH --predictor-aligned 128" TRAIN_EXTRA="--mirror-consistency 50 --batch 512 --lr-warmup 10" \
-        TRAIN_LR=${V27_B512_LR:-1e-4} TRAIN_DATA=$DATA70 train7 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_b512" \
-        "${V27_B512_ITERS:-100}" "${V27_B512_MINUTES:-25}" 2 ;;
+      RECIPE_LR=${V27_B512_LR:-1e-4} RECIPE_EXTRA="--batch 512 --lr-warmup 10" DATA20=$DATA70 recipe20 \
+        "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_b512" "${V27_B512_ITERS:-100}" "${V27_B512_MINUTES:-25}" 2 ;;
     val-v27-b512|val-strong-v27-b512|val-side-v27-b512)  # predictor-v27-b512's run against predictor-v27-low's and
       # their start, plain and +mirror, validation split (OUT27/val_b512_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
