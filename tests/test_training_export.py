@@ -381,6 +381,56 @@ def test_eval_markdown_table_shows_iou_and_chamfer_per_category():
     assert markdown_table({**result, "gt_normals": True}).splitlines()[0].endswith("4 samples, ground-truth normals")
 
 
+def test_category_mean_se_is_the_stratified_standard_error():
+    """Hand-computed on two categories, then against the spread of the estimate over many draws."""
+    from training.evaluation.evaluate import category_mean_se
+
+    # a: mean 0.3, sample variance 0.02 over 2; b: mean 0.7, sample variance 0.04 over 3
+    mean, se = category_mean_se([0.2, 0.5, 0.4, 0.7, 0.9], ["a", "b", "a", "b", "b"])
+    assert mean == pytest.approx(0.5) and se == pytest.approx(np.sqrt(0.02 / 2 + 0.04 / 3) / 2)
+    # a non-finite value is left out; a category with one value has no variance: NaN, not a made-up figure
+    assert category_mean_se([0.2, np.nan, 0.4], ["a", "a", "a"]) == (pytest.approx(0.3), pytest.approx(0.1))
+    m1, s1 = category_mean_se([0.2, 0.4, 0.9], ["a", "a", "b"])
+    assert m1 == pytest.approx(0.6) and np.isnan(s1)
+    assert all(np.isnan(category_mean_se([np.nan], ["a"])))
+    with pytest.raises(ValueError, match="1-D arrays of one length"):
+        category_mean_se([0.1, 0.2], ["a"])
+    # the SE predicts how far the category mean moves between independent draws of the same size
+    rng = np.random.default_rng(0)
+    cats = np.repeat(["a", "b", "c"], [5, 12, 30])
+    scale = np.select([cats == "a", cats == "b"], [0.3, 0.1], 0.05)
+    draws = [category_mean_se(rng.normal(0.5, scale), cats) for _ in range(4000)]
+    spread = np.std([d[0] for d in draws])
+    assert spread == pytest.approx(np.sqrt(0.09 / 5 + 0.01 / 12 + 0.0025 / 30) / 3, rel=0.05)
+    assert np.mean([d[1] for d in draws]) == pytest.approx(spread, rel=0.1)
+
+
+def test_eval_paired_difference_and_its_table_line():
+    """Two methods on the same sketches: the difference of their category means and its paired SE, which is 0 for
+    a constant shift whatever the samples' own spread; a different sample order is a bug, not a number."""
+    from training.evaluation.evaluate import METRICS, _paired_difference, markdown_table
+
+    first = [{"category": c, "shape_id": f"{c}{i}", "view": 0, "voxel_iou": v}
+             for i, (c, v) in enumerate([("a", 0.1), ("a", 0.9), ("b", 0.3), ("b", 0.7)])]
+    shifted = [dict(r, voxel_iou=r["voxel_iou"] + 0.05) for r in first]
+    d = _paired_difference(shifted, first)
+    assert d["voxel_iou"] == pytest.approx(0.05) and d["voxel_iou_se"] == pytest.approx(0.0, abs=1e-12)
+    with pytest.raises(AssertionError, match="same sketches"):
+        _paired_difference(shifted[::-1], first)
+
+    per = {"a": {"voxel_iou": 0.5, "chamfer_l1": 0.1}}
+    mean = {m: 0.5 for m in METRICS} | {"voxel_iou_se": 0.0123}
+    result = {"method_order": ["full", "other"], "voxel_resolution": 32, "split": "val", "samples": 4,
+              "gt_normals": False,
+              "methods": {"full": {"per_category": per, "mean": mean, "ms_per_sample": 3.0},
+                          "other": {"per_category": per, "mean": mean | {"voxel_iou_se": float("nan")},
+                                    "ms_per_sample": 3.0, "vs_first": {"method": "full"} | d}}}
+    table = markdown_table(result)
+    assert "| full | 0.5000 ± 0.0123 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table
+    assert "| other | 0.5000 | 0.5000 |" in table  # no SE shown where there is none
+    assert "Voxel IoU minus full's on the same sketches (paired): other +0.0500 ± 0.0000." in table
+
+
 def test_parity_inputs_of_a_small_sketch_dataset_keep_its_normal_images(tmp_path):
     """A run trained on ``data --size 64`` (training/gpu_predictor.sh) exports: the predictor's parity check
     reads the data's real normal images, the generator's reads drawn 256 x 256 sketches (the data's are 64)."""

@@ -213,6 +213,10 @@ def test_retrieval_data_searches_another_datasets_train_split(data_dir, tmp_path
     own = evaluate(run, data_dir, "test", gt_normals=True, max_samples=3, progress=False)
     wider = evaluate(run, data_dir, "test", gt_normals=True, max_samples=3, progress=False, retrieval_data=everything)
     assert own["methods"]["retrieval"]["mean"]["voxel_iou"] < 0.99
+    # the paired difference is the difference of the two means (every sample scored by both)
+    assert own["methods"]["retrieval"]["vs_first"]["voxel_iou"] == pytest.approx(
+        own["methods"]["retrieval"]["mean"]["voxel_iou"] - own["mean"]["voxel_iou"], abs=1e-12)
+    assert "vs_first" not in own["methods"][own["method_order"][0]]
     assert wider["methods"]["retrieval"]["mean"]["voxel_iou"] == pytest.approx(1.0)
     assert wider["retrieval_data"] == str(everything) and own["retrieval_data"] == str(data_dir)
     # the run's own rows do not depend on where retrieval searches

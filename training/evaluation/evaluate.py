@@ -200,6 +200,36 @@ def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int, 
     return {"voxel_iou": iou, "chamfer_l1": cd, "normal_consistency": nc}
 
 
+def category_mean_se(values, categories) -> tuple[float, float]:
+    """The mean over categories of each category's mean, and its standard error.
+
+    The categories are strata sampled independently, so with ``s_c`` the sample standard deviation (ddof 1) of
+    category c's ``n_c`` finite values and ``C`` categories::
+
+        mean = sum_c mean_c / C        SE = sqrt(sum_c s_c^2 / n_c) / C
+
+    (the standard error of a stratified mean with equal weights). Non-finite values are left out; the SE is NaN
+    when a category has fewer than two finite values, and both are NaN with no finite value at all.
+    Applied to per-sample differences between two methods on the same sketches it gives the paired difference
+    and its SE, which is far smaller than either method's own SE when the two agree sample by sample.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    categories = np.asarray(categories)
+    if values.shape != categories.shape or values.ndim != 1:
+        raise ValueError(f"values and categories must be two 1-D arrays of one length, got {values.shape} and "
+                         f"{categories.shape}")
+    means, variances = [], []
+    for c in np.unique(categories):
+        v = values[(categories == c) & np.isfinite(values)]
+        if v.size == 0:
+            continue
+        means.append(v.mean())
+        variances.append(v.var(ddof=1) / v.size if v.size > 1 else float("nan"))
+    if not means:
+        return float("nan"), float("nan")
+    return float(np.mean(means)), float(np.sqrt(np.sum(variances)) / len(means))
+
+
 def _summarise(records: list[dict]) -> dict:
     per_cat: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for r in records:
@@ -209,7 +239,20 @@ def _summarise(records: list[dict]) -> dict:
                     | {"samples": len(v[METRICS[0]])} for c, v in sorted(per_cat.items())}
     mean = {m: float(np.nanmean([per_category[c][m] for c in per_category])) for m in METRICS}
     mean["samples"] = len(records)
+    if records:
+        mean["voxel_iou_se"] = category_mean_se([r["voxel_iou"] for r in records], [r["category"] for r in records])[1]
     return {"mean": mean, "per_category": per_category}
+
+
+def _paired_difference(records: list[dict], first: list[dict]) -> dict[str, float]:
+    """Voxel IoU of ``records`` minus ``first``'s on the same sketches: the difference of the category means and
+    its paired standard error (:func:`category_mean_se` of the per-sample differences)."""
+    if [(r["category"], r["shape_id"], r["view"]) for r in records] != [
+            (r["category"], r["shape_id"], r["view"]) for r in first]:
+        raise AssertionError("the methods were not scored on the same sketches in the same order")
+    diff, se = category_mean_se([a["voxel_iou"] - b["voxel_iou"] for a, b in zip(records, first)],
+                                [r["category"] for r in records])
+    return {"voxel_iou": diff, "voxel_iou_se": se}
 
 
 def evaluate(
@@ -360,6 +403,8 @@ def evaluate(
     for m in methods:
         summ = _summarise(records[m.name])
         summ["ms_per_sample"] = 1000.0 * m.seconds / max(m.count, 1)
+        if m is not methods[0] and records[m.name]:
+            summ["vs_first"] = {"method": methods[0].name} | _paired_difference(records[m.name], records[methods[0].name])
         summaries[m.name] = summ
     main = summaries[methods[0].name]
     return {
@@ -407,11 +452,19 @@ def markdown_table(result: dict) -> str:
     lines += ["", "| method | " + " | ".join(METRICS) + " | ms / sample |", "|---|" + "---:|" * (len(METRICS) + 1)]
     for n in names:
         mean = result["methods"][n]["mean"]
-        lines.append(f"| {n} | " + " | ".join(f"{mean[m]:.4f}" for m in METRICS)
-                     + f" | {result['methods'][n]['ms_per_sample']:.1f} |")
+        cells = [f"{mean[m]:.4f}" for m in METRICS]
+        se = mean.get("voxel_iou_se")
+        if se is not None and np.isfinite(se):
+            cells[METRICS.index("voxel_iou")] += f" ± {se:.4f}"
+        lines.append(f"| {n} | " + " | ".join(cells) + f" | {result['methods'][n]['ms_per_sample']:.1f} |")
+    paired = [(n, result["methods"][n]["vs_first"]) for n in names if "vs_first" in result["methods"][n]]
+    if paired:
+        lines += ["", f"Voxel IoU minus {paired[0][1]['method']}'s on the same sketches (paired): "
+                  + "; ".join(f"{n} {d['voxel_iou']:+.4f} ± {d['voxel_iou_se']:.4f}" for n, d in paired) + "."]
     lines.append("")
     lines.append("voxel_iou, normal_consistency, silhouette_iou: higher is better; chamfer_l1: lower is better. "
-                 "Means are over categories. ms / sample: network inference only (this machine).")
+                 "Means are over categories; ± one standard error of the mean over categories (per-category sample "
+                 "variances; the split's shapes taken as given). ms / sample: network inference only (this machine).")
     return "\n".join(lines) + "\n"
 
 
