@@ -134,6 +134,10 @@
 #   (shapes 600-1199 of each category, the train split, 4 views each), generated-v27 and generated-mirror-v27 the
 #   generator's images of them, import-v27 the twenty-first back from git as a run (RUNS27 [runs/v27]),
 #   predictor-v27 trains it on them, val-*-v27 sets the run against its start (OUT27 [out/v27]).
+#   Then (2026-11-28, a second session): data-v27-check renders DATA72 [data/check1200v4] (shapes 1200-1249, a second
+#   validation set nothing trained on or was chosen by) and check-*-v27 scores the twenty-first and the three CPU
+#   passes on it; eval-big-*-v27 the bundled twenty-first on ten times eval-*-v26's test sketches; control-v27 and
+#   eval-control-*-v27 full minus silhouette-only over predictor-v27-low's continuation.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -220,6 +224,7 @@ OUT26=${OUT26:-out/v26}
 OUT27=${OUT27:-out/v27}
 RUNS27=${RUNS27:-runs/v27}
 DATA70=${DATA70:-data/fresh600v4}
+DATA72=${DATA72:-data/check1200v4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1817,6 +1822,25 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # each as the GPU stage rendered; about 20 min on 2 cores; resumes
       sketchmesh data --source procedural --first-shape 600 --shapes-per-category 600 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA70" ;;
+    eval-big-v27|eval-big-strong-v27|eval-big-side-v27)  # the bundled twenty-first (import-v27's run, the fifth generator)
+      # on ten times the test sketches of eval-*-v26 (BIG_SAMPLES [1560] evenly spaced over the 139 test shapes' 6,672
+      # views; side views: 1,560 of the 1,668 at 0 degrees), plain and +mirror: how far the 156-sketch figures are from
+      # the split's own (OUT27/big/eval_*)
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      local c=${1/big-/}; eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
+      SAMPLES2=${BIG_SAMPLES:-1560} eval_against test "$OUT27/big/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
+    data-v27-check)  # DATA72 [data/check1200v4]: a second validation set no run has trained on or been chosen by: shapes
+      # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
+        --views-per-shape 4 --splits train --workers 2 --out "$DATA72" ;;
+    check-v27|check-strong-v27|check-side-v27)  # is the twenty-first's lead over the CPU passes the validation split's
+      # choice? The twenty-first against predictor-v27's, -low's and -b512's runs on DATA72 (CHECK_SAMPLES [520] sketches
+      # per case), plain and +mirror, into OUT27/check_*
+      [ -f "$DATA72/manifest.json" ] || step data-v27-check
+      eval_case "${1/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS27/v27_low" --baseline-run "$RUNS27/v27_b512" --baseline-run "$RUNS27/v27_fresh" --no-retrieval \
+        "${EVAL_EXTRA[@]}" --max-samples "${CHECK_SAMPLES:-520}" --threads 2 --out "$OUT27/check_${EVAL_NAME#eval_}" ;;
     generated-v27|generated-mirror-v27)  # generated-v26's images (the same generator and settings) on DATA70; resume
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
@@ -1845,6 +1869,16 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
       RECIPE_LR=${V27_B512_LR:-1e-4} RECIPE_EXTRA="--batch 512 --lr-warmup 10" DATA20=$DATA70 recipe20 \
         "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_b512" "${V27_B512_ITERS:-100}" "${V27_B512_MINUTES:-25}" 2 ;;
+    control-v27)  # predictor-v27-low's silhouette-only control: the same start (the twenty-first), data (DATA70), recipe,
+      # rate (V27_LOW_LR [2e-5]) and V27_LOW_ITERS [1300] iterations with the normal weight 0, into RUNS27/v27_low_sil
+      # (V27_CONTROL_MINUTES [40] at most, so a busy machine still ends at the same iteration; resumes)
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      RECIPE_LR=${V27_LOW_LR:-2e-5} DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low_sil" \
+        "${V27_LOW_ITERS:-1300}" "${V27_CONTROL_MINUTES:-40}" 2 0 ;;
+    eval-control-v27|eval-control-strong-v27|eval-control-side-v27)  # full minus silhouette-only over the twenty-first's
+      # continuation: predictor-v27-low's run against control-v27's, plain and +mirror, test split (OUT27/control/eval_*)
+      local c=${1/control-/}; eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
+      eval_against test "$OUT27/control/$EVAL_NAME" "$RUNS27/v27_low" "$RUNS27/v27_low_sil" ;;
     val-v27-b512|val-strong-v27-b512|val-side-v27-b512)  # predictor-v27-b512's run against predictor-v27-low's and
       # their start, plain and +mirror, validation split (OUT27/val_b512_*)
       eval_case "${1/val-/eval-}"; EVAL_EXTRA+=(--mirror-average)
