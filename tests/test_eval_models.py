@@ -77,12 +77,23 @@ def test_one_row_per_mesh_with_ious_in_range(result, world):
     for c in res["columns"]:
         assert res["mean"][c] == pytest.approx(np.mean([r["iou"][c] for r in res["rows"]]), abs=1e-12)
         assert res["counted"][c] == 3
+        assert res["se"][c] == pytest.approx(np.std([r["iou"][c] for r in res["rows"]], ddof=1) / np.sqrt(3), abs=1e-12)
+    # each column's paired difference from the first model, mesh by mesh
+    assert res["paired"]["first"] == "bundled"
+    for c in res["columns"][1:]:
+        d = [r["iou"][c] - r["iou"]["bundled"] for r in res["rows"]]
+        got = res["paired"]["differences"][c]
+        assert got["mean"] == pytest.approx(np.mean(d), abs=1e-12) and got["meshes"] == 3
+        assert got["se"] == pytest.approx(np.std(d, ddof=1) / np.sqrt(3), abs=1e-12)
     # JSON round trip: the --json file and OUT's copy hold the same record; the markdown has a row per mesh
     assert json.loads((out / "eval_models_all.json").read_text()) == res
     md = (out / "eval_models_all.md").read_text()
     for r in res["rows"]:
         assert f"| {r['shape_id']} | parts | {r['iou']['bundled']:.3f} | {r['iou']['tiny']:.3f} |" in md
     assert f"**{res['mean']['template']:.3f}**" in md
+    assert "| standard error | | " + " | ".join(f"{res['se'][c]:.3f}" for c in res["columns"]) + " |" in md
+    tiny = res["paired"]["differences"]["tiny"]
+    assert f"Minus bundled's on the same meshes (paired, mean +- standard error): tiny {tiny['mean']:+.3f} +- {tiny['se']:.3f};" in md
 
 
 def test_template_floor_is_the_voxel_iou_of_the_template_sphere(result, world):

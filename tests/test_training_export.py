@@ -426,9 +426,9 @@ def test_eval_paired_difference_and_its_table_line():
                           "other": {"per_category": per, "mean": mean | {"voxel_iou_se": float("nan")},
                                     "ms_per_sample": 3.0, "vs_first": {"method": "full"} | d}}}
     table = markdown_table(result)
-    assert "| full | 0.5000 ± 0.0123 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table
+    assert "| full | 0.5000 +- 0.0123 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table
     assert "| other | 0.5000 | 0.5000 |" in table  # no SE shown where there is none
-    assert "Voxel IoU minus full's on the same sketches (paired): other +0.0500 ± 0.0000." in table
+    assert "Voxel IoU minus full's on the same sketches (paired): other +0.0500 +- 0.0000." in table
 
 
 def test_parity_inputs_of_a_small_sketch_dataset_keep_its_normal_images(tmp_path):

@@ -455,15 +455,15 @@ def markdown_table(result: dict) -> str:
         cells = [f"{mean[m]:.4f}" for m in METRICS]
         se = mean.get("voxel_iou_se")
         if se is not None and np.isfinite(se):
-            cells[METRICS.index("voxel_iou")] += f" ± {se:.4f}"
+            cells[METRICS.index("voxel_iou")] += f" +- {se:.4f}"
         lines.append(f"| {n} | " + " | ".join(cells) + f" | {result['methods'][n]['ms_per_sample']:.1f} |")
     paired = [(n, result["methods"][n]["vs_first"]) for n in names if "vs_first" in result["methods"][n]]
     if paired:
         lines += ["", f"Voxel IoU minus {paired[0][1]['method']}'s on the same sketches (paired): "
-                  + "; ".join(f"{n} {d['voxel_iou']:+.4f} ± {d['voxel_iou_se']:.4f}" for n, d in paired) + "."]
+                  + "; ".join(f"{n} {d['voxel_iou']:+.4f} +- {d['voxel_iou_se']:.4f}" for n, d in paired) + "."]
     lines.append("")
     lines.append("voxel_iou, normal_consistency, silhouette_iou: higher is better; chamfer_l1: lower is better. "
-                 "Means are over categories; ± one standard error of the mean over categories (per-category sample "
+                 "Means are over categories; +- one standard error of the mean over categories (per-category sample "
                  "variances; the split's shapes taken as given). ms / sample: network inference only (this machine).")
     return "\n".join(lines) + "\n"
 

@@ -253,6 +253,21 @@ def _mean(values) -> float | None:
     return float(np.mean(vals)) if vals else None
 
 
+def _se(values) -> float | None:
+    """Standard error of the mean over meshes (ddof 1); None with fewer than two meshes."""
+    vals = [v for v in values if v is not None]
+    return float(np.std(vals, ddof=1) / np.sqrt(len(vals))) if len(vals) > 1 else None
+
+
+def _paired(rows: list[dict], column: str, first: str) -> dict | None:
+    """``column`` minus ``first`` over the meshes both scored: the mean difference and its standard error."""
+    diffs = [r["iou"][column] - r["iou"][first] for r in rows
+             if r["iou"][column] is not None and r["iou"][first] is not None]
+    if not diffs:
+        return None
+    return {"mean": float(np.mean(diffs)), "se": _se(diffs), "meshes": len(diffs)}
+
+
 def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float, seed: int) -> np.ndarray:
     if augment_strength <= 0:
         return dataset.shape_array(cat, sid, "sketch")[view].astype(np.float32) / 255.0
@@ -403,6 +418,8 @@ def evaluate_models(
         notes.append("retrieval: no other training shape for some meshes (leave-one-out); their retrieval is blank")
 
     mean = {c: _mean(r["iou"][c] for r in rows) for c in columns}
+    se = {c: _se(r["iou"][c] for r in rows) for c in columns}
+    paired = {c: _paired(rows, c, columns[0]) for c in columns[1:]}
     counted = {c: sum(r["iou"][c] is not None for r in rows) for c in columns}
     per_cat: dict[str, list[dict]] = defaultdict(list)
     for r in rows:
@@ -414,6 +431,8 @@ def evaluate_models(
         "models": {label: str(path) for label, path in models},
         "rows": rows,
         "mean": mean,
+        "se": se,
+        "paired": {"first": columns[0], "differences": paired},
         "counted": counted,
         "per_category": per_category,
         "notes": notes,
@@ -449,6 +468,15 @@ def markdown_report(result: dict) -> str:
         lines.append(f"| {r['shape_id']} | {r['category']} | " + " | ".join(_cell(r["iou"][c]) for c in cols) + " |")
     lines.append(f"| **mean** ({result['meshes']} meshes) | | "
                  + " | ".join(f"**{_cell(result['mean'][c])}**" for c in cols) + " |")
+    se = result.get("se", {})
+    if any(se.get(c) is not None for c in cols):
+        lines.append("| standard error | | " + " | ".join(_cell(se.get(c)) for c in cols) + " |")
+    paired = result.get("paired", {})
+    diffs = [(c, d) for c, d in paired.get("differences", {}).items() if d is not None]
+    if diffs:
+        lines += ["", f"Minus {paired['first']}'s on the same meshes (paired, mean +- standard error): "
+                  + "; ".join(f"{c} {d['mean']:+.3f}" + (f" +- {d['se']:.3f}" if d["se"] is not None else "")
+                              for c, d in diffs) + "."]
     lines.append("")
     lines.append("Each model's mesh is predicted from a view's line drawing by the app's engine and compared, in the "
                  "world frame, with the shape's own mesh; a mesh's IoU is the mean over its views. Higher is better.")
