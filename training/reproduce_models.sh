@@ -1822,13 +1822,16 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # each as the GPU stage rendered; about 20 min on 2 cores; resumes
       sketchmesh data --source procedural --first-shape 600 --shapes-per-category 600 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA70" ;;
-    eval-big-v27|eval-big-strong-v27|eval-big-side-v27)  # the bundled twenty-first (import-v27's run, the fifth generator)
-      # on ten times the test sketches of eval-*-v26 (BIG_SAMPLES [1560] evenly spaced over the 139 test shapes' 6,672
-      # views; side views: 1,560 of the 1,668 at 0 degrees), plain and +mirror: how far the 156-sketch figures are from
-      # the split's own (OUT27/big/eval_*)
+    eval-big-v27|eval-big-strong-v27|eval-big-side-v27|eval-full-v27|eval-full-strong-v27|eval-full-side-v27)  # the
+      # bundled twenty-first (import-v27's run, the fifth generator), plain and +mirror, on ten times the test sketches of
+      # eval-*-v26 (eval-big: BIG_SAMPLES [1560] evenly spaced over the 139 test shapes' 6,672 views; side views: 1,560
+      # of the 1,668 at 0 degrees; OUT27/big/eval_*) or on every one of them (eval-full, about 14 min for each of clean
+      # and strong, 4 for side; OUT27/full/eval_*): how far the 156-sketch figures are from the split's own
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
-      local c=${1/big-/}; eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
-      SAMPLES2=${BIG_SAMPLES:-1560} eval_against test "$OUT27/big/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
+      local c=${1/big-/} size=big n=${BIG_SAMPLES:-1560}
+      [ "${1#eval-full-}" != "$1" ] && { c=${1/full-/}; size=full; n=0; }
+      eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
+      SAMPLES2=$n eval_against test "$OUT27/$size/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
     data-v27-check)  # DATA72 [data/check1200v4]: a second validation set no run has trained on or been chosen by: shapes
       # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
