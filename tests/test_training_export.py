@@ -395,6 +395,16 @@ def test_category_mean_se_is_the_stratified_standard_error():
     assert all(np.isnan(category_mean_se([np.nan], ["a"])))
     with pytest.raises(ValueError, match="1-D arrays of one length"):
         category_mean_se([0.1, 0.2], ["a"])
+    # clusters (a shape's views): one value per cluster is the formula above; a cluster that repeats one value
+    # m times adds no information, so the SE is that of the distinct values
+    values, cats = [0.2, 0.5, 0.4, 0.7, 0.9], ["a", "b", "a", "b", "b"]
+    assert category_mean_se(values, cats, clusters=list("vwxyz")) == (pytest.approx(mean), pytest.approx(se))
+    repeated = np.repeat(values, 3)
+    got = category_mean_se(repeated, np.repeat(cats, 3), clusters=np.repeat(list("vwxyz"), 3))
+    assert got == (pytest.approx(mean), pytest.approx(se))
+    assert category_mean_se(repeated, np.repeat(cats, 3))[1] < se / 1.5  # taken as independent: too confident
+    # one cluster per category: no spread between draws to measure
+    assert np.isnan(category_mean_se([0.1, 0.3], ["a", "a"], clusters=["s", "s"])[1])
     # the SE predicts how far the category mean moves between independent draws of the same size
     rng = np.random.default_rng(0)
     cats = np.repeat(["a", "b", "c"], [5, 12, 30])

@@ -200,31 +200,42 @@ def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int, 
     return {"voxel_iou": iou, "chamfer_l1": cd, "normal_consistency": nc}
 
 
-def category_mean_se(values, categories) -> tuple[float, float]:
+def category_mean_se(values, categories, clusters=None) -> tuple[float, float]:
     """The mean over categories of each category's mean, and its standard error.
 
-    The categories are strata sampled independently, so with ``s_c`` the sample standard deviation (ddof 1) of
-    category c's ``n_c`` finite values and ``C`` categories::
+    The categories are strata, each with its own mean; with ``C`` of them, ``mean = sum_c mean_c / C`` and
+    ``SE = sqrt(sum_c var_c) / C``. Within category c (``n_c`` finite values ``x_i``, residuals
+    ``r_i = x_i - mean_c``):
 
-        mean = sum_c mean_c / C        SE = sqrt(sum_c s_c^2 / n_c) / C
+    * without ``clusters``, every value is an independent draw: ``var_c = s_c^2 / n_c`` with ``s_c`` the sample
+      standard deviation (ddof 1);
+    * with ``clusters`` (e.g. each sketch's shape: the views of one shape are not independent draws), the
+      clusters are the draws: ``var_c = K / (K - 1) * sum_k (sum_{i in k} r_i)^2 / n_c^2`` over its ``K`` clusters
+      (the cluster-robust variance of a mean), which is the formula above when every cluster holds one value, and
+      ``s^2 / K`` of the cluster values when each cluster repeats one value.
 
-    (the standard error of a stratified mean with equal weights). Non-finite values are left out; the SE is NaN
-    when a category has fewer than two finite values, and both are NaN with no finite value at all.
-    Applied to per-sample differences between two methods on the same sketches it gives the paired difference
-    and its SE, which is far smaller than either method's own SE when the two agree sample by sample.
+    Non-finite values are left out; the SE is NaN when a category has fewer than two finite values (or clusters),
+    and both are NaN with no finite value at all. Applied to per-sample differences between two methods on the
+    same sketches it gives the paired difference and its SE, far smaller than either method's own SE when the two
+    agree sample by sample.
     """
     values = np.asarray(values, dtype=np.float64)
     categories = np.asarray(categories)
-    if values.shape != categories.shape or values.ndim != 1:
-        raise ValueError(f"values and categories must be two 1-D arrays of one length, got {values.shape} and "
-                         f"{categories.shape}")
+    groups = np.arange(values.size) if clusters is None else np.asarray(clusters)
+    if values.shape != categories.shape or values.shape != groups.shape or values.ndim != 1:
+        raise ValueError(f"values, categories and clusters must be 1-D arrays of one length, got {values.shape}, "
+                         f"{categories.shape} and {groups.shape}")
     means, variances = [], []
     for c in np.unique(categories):
-        v = values[(categories == c) & np.isfinite(values)]
+        keep = (categories == c) & np.isfinite(values)
+        v = values[keep]
         if v.size == 0:
             continue
         means.append(v.mean())
-        variances.append(v.var(ddof=1) / v.size if v.size > 1 else float("nan"))
+        _, which = np.unique(groups[keep], return_inverse=True)
+        k = int(which.max()) + 1
+        sums = np.bincount(which, weights=v - v.mean(), minlength=k)
+        variances.append(k / (k - 1) * float(np.sum(sums**2)) / v.size**2 if k > 1 else float("nan"))
     if not means:
         return float("nan"), float("nan")
     return float(np.mean(means)), float(np.sqrt(np.sum(variances)) / len(means))
@@ -240,18 +251,19 @@ def _summarise(records: list[dict]) -> dict:
     mean = {m: float(np.nanmean([per_category[c][m] for c in per_category])) for m in METRICS}
     mean["samples"] = len(records)
     if records:
-        mean["voxel_iou_se"] = category_mean_se([r["voxel_iou"] for r in records], [r["category"] for r in records])[1]
+        mean["voxel_iou_se"] = category_mean_se([r["voxel_iou"] for r in records], [r["category"] for r in records],
+                                                [r["shape_id"] for r in records])[1]
     return {"mean": mean, "per_category": per_category}
 
 
 def _paired_difference(records: list[dict], first: list[dict]) -> dict[str, float]:
     """Voxel IoU of ``records`` minus ``first``'s on the same sketches: the difference of the category means and
-    its paired standard error (:func:`category_mean_se` of the per-sample differences)."""
+    its paired standard error (:func:`category_mean_se` of the per-sample differences, the shapes as clusters)."""
     if [(r["category"], r["shape_id"], r["view"]) for r in records] != [
             (r["category"], r["shape_id"], r["view"]) for r in first]:
         raise AssertionError("the methods were not scored on the same sketches in the same order")
     diff, se = category_mean_se([a["voxel_iou"] - b["voxel_iou"] for a, b in zip(records, first)],
-                                [r["category"] for r in records])
+                                [r["category"] for r in records], [r["shape_id"] for r in records])
     return {"voxel_iou": diff, "voxel_iou_se": se}
 
 
@@ -463,8 +475,8 @@ def markdown_table(result: dict) -> str:
                   + "; ".join(f"{n} {d['voxel_iou']:+.4f} +- {d['voxel_iou_se']:.4f}" for n, d in paired) + "."]
     lines.append("")
     lines.append("voxel_iou, normal_consistency, silhouette_iou: higher is better; chamfer_l1: lower is better. "
-                 "Means are over categories; +- one standard error of the mean over categories (per-category sample "
-                 "variances; the split's shapes taken as given). ms / sample: network inference only (this machine).")
+                 "Means are over categories; +- one standard error of that mean, the shapes as the draws (a shape's "
+                 "views are not independent). ms / sample: network inference only (this machine).")
     return "\n".join(lines) + "\n"
 
 
