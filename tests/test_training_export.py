@@ -439,6 +439,9 @@ def test_eval_paired_difference_and_its_table_line():
     assert "| full | 0.5000 +- 0.0123 | 0.5000 | 0.5000 | 0.5000 | 3.0 |" in table
     assert "| other | 0.5000 | 0.5000 |" in table  # no SE shown where there is none
     assert "Voxel IoU minus full's on the same sketches (paired): other +0.0500 +- 0.0000." in table
+    # read back from JSON, where a NaN standard error is None: the difference alone
+    result["methods"]["other"]["vs_first"]["voxel_iou_se"] = None
+    assert "(paired): other +0.0500." in markdown_table(result)
 
 
 def test_parity_inputs_of_a_small_sketch_dataset_keep_its_normal_images(tmp_path):

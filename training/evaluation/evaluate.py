@@ -471,8 +471,12 @@ def markdown_table(result: dict) -> str:
         lines.append(f"| {n} | " + " | ".join(cells) + f" | {result['methods'][n]['ms_per_sample']:.1f} |")
     paired = [(n, result["methods"][n]["vs_first"]) for n in names if "vs_first" in result["methods"][n]]
     if paired:
+        def cell(d: dict) -> str:  # the SE is NaN (None once through JSON) when a category has one shape
+            se = d.get("voxel_iou_se")
+            return f"{d['voxel_iou']:+.4f}" + (f" +- {se:.4f}" if se is not None and np.isfinite(se) else "")
+
         lines += ["", f"Voxel IoU minus {paired[0][1]['method']}'s on the same sketches (paired): "
-                  + "; ".join(f"{n} {d['voxel_iou']:+.4f} +- {d['voxel_iou_se']:.4f}" for n, d in paired) + "."]
+                  + "; ".join(f"{n} {cell(d)}" for n, d in paired) + "."]
     lines.append("")
     lines.append("voxel_iou, normal_consistency, silhouette_iou: higher is better; chamfer_l1: lower is better. "
                  "Means are over categories; +- one standard error of that mean, the shapes as the draws (a shape's "
