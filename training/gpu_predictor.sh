@@ -136,6 +136,10 @@
 # The next lent GPU: the same two calls from the bundled twenty-first (assets/models), with SHAPES=800 (2,600 shapes
 #   none of the stages has seen: more shapes is what paid; about 250 s of rendering and 2 x 100 s of generated sets,
 #   so the first call trains about a minute and the second, on the warm machine, the rest), into RUNS g27 / g27b.
+#   Choose between it and the twenty-first on more than the validation split's 156 sketches: on them a pair's mean
+#   carries about +-0.016 and a paired difference +-0.001 to 0.003 (sketchmesh eval prints both since 2026-11-28), and
+#   last session's CPU passes looked 0.005-0.015 behind there but were within 0.003 on DATA72's 520 (reproduce_models.sh
+#   check-*-v27, whose runs a later step can extend with the new one).
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
