@@ -299,6 +299,12 @@ train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterati
     --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
 }
 
+v27_start() {  # what a training step from the twenty-first on DATA70 needs ($1 the step): the generated sets (or a
+  # clear error) and the twenty-first imported as a run (import-v27 when it is not there)
+  [ -f "$DATA70/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA70: run data-v27 generated-v27 generated-mirror-v27 first" >&2; exit 1; }
+  [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+}
+
 recipe20() {  # predictor-v19's batch-32 recipe on DATA20 (the larger predictor with the aligned branch, mirror-consistency 50,
   # peak 1e-4 cosine): train7 from run $1 into run $2, $3 iterations, $4 minutes at most, $5 threads (RECIPE_LR: another
   # peak rate; RECIPE_EXTRA: more `train mesh` flags, e.g. --batch)
@@ -1825,8 +1831,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     eval-big-v27|eval-big-strong-v27|eval-big-side-v27|eval-full-v27|eval-full-strong-v27|eval-full-side-v27)  # the
       # bundled twenty-first (import-v27's run, the fifth generator), plain and +mirror, on ten times the test sketches of
       # eval-*-v26 (eval-big: BIG_SAMPLES [1560] evenly spaced over the 139 test shapes' 6,672 views; side views: 1,560
-      # of the 1,668 at 0 degrees; OUT27/big/eval_*) or on every one of them (eval-full, about 14 min for each of clean
-      # and strong, 4 for side; OUT27/full/eval_*): how far the 156-sketch figures are from the split's own
+      # of the 1,668 at 0 degrees; OUT27/big/eval_*) or on every one of them (eval-full, 15 and 17 min for clean and
+      # strong, 4 for side; OUT27/full/eval_*): how far the 156-sketch figures are from the split's own
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
       local c=${1/big-/} size=big n=${BIG_SAMPLES:-1560}
       [ "${1#eval-full-}" != "$1" ] && { c=${1/full-/}; size=full; n=0; }
@@ -1857,25 +1863,24 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         sketchmesh import-models "$OUT27/models_twentyfirst" --out "$RUNS27/twentyfirst" --only predictor --data "$DATA70" --threads 2 ;;
     predictor-v27)  # the twenty-first trained on DATA70 by the CPU recipe (recipe20) along a new cosine into
       # RUNS27/v27_fresh: V27_ITERS [3000], V27_MINUTES [50] at most, two threads; resumes
-      [ -f "$DATA70/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA70: run data-v27 generated-v27 generated-mirror-v27 first" >&2; exit 1; }
-      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      v27_start "$1"
       DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_fresh" "${V27_ITERS:-3000}" "${V27_MINUTES:-50}" 2 ;;
     predictor-v27-low)  # predictor-v27 at a fifth of its peak rate (V27_LOW_LR [2e-5]): the CPU recipe's 1e-4 at batch 32
       # lost 0.015 on validation against the twenty-first, whose last stage ran at batch 512 (val-*-v27); into
       # RUNS27/v27_low, V27_LOW_ITERS [1300], V27_LOW_MINUTES [25] at most; resumes
-      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      v27_start "$1"
       RECIPE_LR=${V27_LOW_LR:-2e-5} DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" \
         "${V27_LOW_ITERS:-1300}" "${V27_LOW_MINUTES:-25}" 2 ;;
     predictor-v27-b512)  # predictor-v27 at the GPU stage's batch (512) and a rate between its two calls' (V27_B512_LR
       # [1e-4], 10 warm-up steps): is it the batch-32 steps that move the twenty-first off its optimum? Into
       # RUNS27/v27_b512, V27_B512_ITERS [100], V27_B512_MINUTES [25] at most; resumes
-      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      v27_start "$1"
       RECIPE_LR=${V27_B512_LR:-1e-4} RECIPE_EXTRA="--batch 512 --lr-warmup 10" DATA20=$DATA70 recipe20 \
         "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_b512" "${V27_B512_ITERS:-100}" "${V27_B512_MINUTES:-25}" 2 ;;
     control-v27)  # predictor-v27-low's silhouette-only control: the same start (the twenty-first), data (DATA70), recipe,
       # rate (V27_LOW_LR [2e-5]) and V27_LOW_ITERS [1300] iterations with the normal weight 0, into RUNS27/v27_low_sil
       # (V27_CONTROL_MINUTES [40] at most, so a busy machine still ends at the same iteration; resumes)
-      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || { echo "$1 starts from the twenty-first: run import-v27 first" >&2; exit 1; }
+      v27_start "$1"
       RECIPE_LR=${V27_LOW_LR:-2e-5} DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low_sil" \
         "${V27_LOW_ITERS:-1300}" "${V27_CONTROL_MINUTES:-40}" 2 0 ;;
     eval-control-v27|eval-control-strong-v27|eval-control-side-v27)  # full minus silhouette-only over the twenty-first's

@@ -335,6 +335,47 @@ def finite_mean(values) -> float:
     return float(v.mean()) if v.size else float("nan")
 
 
+def category_mean_se(values, categories, clusters=None) -> tuple[float, float]:
+    """The mean over categories of each category's mean, and its standard error.
+
+    The categories are strata, each with its own mean; with ``C`` of them, ``mean = sum_c mean_c / C`` and
+    ``SE = sqrt(sum_c var_c) / C``. Within category c (``n_c`` finite values ``x_i``, residuals
+    ``r_i = x_i - mean_c``):
+
+    * without ``clusters``, every value is an independent draw: ``var_c = s_c^2 / n_c`` with ``s_c`` the sample
+      standard deviation (ddof 1);
+    * with ``clusters`` (e.g. each sketch's shape: the views of one shape are not independent draws), the
+      clusters are the draws: ``var_c = K / (K - 1) * sum_k (sum_{i in k} r_i)^2 / n_c^2`` over its ``K`` clusters
+      (the cluster-robust variance of a mean), which is the formula above when every cluster holds one value, and
+      ``s^2 / K`` of the cluster values when each cluster repeats one value.
+
+    Non-finite values are left out; the SE is NaN when a category has fewer than two finite values (or clusters),
+    and both are NaN with no finite value at all. Applied to per-sample differences between two methods on the
+    same sketches it gives the paired difference and its SE, far smaller than either method's own SE when the two
+    agree sample by sample.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    categories = np.asarray(categories)
+    groups = np.arange(values.size) if clusters is None else np.asarray(clusters)
+    if values.shape != categories.shape or values.shape != groups.shape or values.ndim != 1:
+        raise ValueError(f"values, categories and clusters must be 1-D arrays of one length, got {values.shape}, "
+                         f"{categories.shape} and {groups.shape}")
+    means, variances = [], []
+    for c in np.unique(categories):
+        keep = (categories == c) & np.isfinite(values)
+        v = values[keep]
+        if v.size == 0:
+            continue
+        means.append(v.mean())
+        _, which = np.unique(groups[keep], return_inverse=True)
+        k = int(which.max()) + 1
+        sums = np.bincount(which, weights=v - v.mean(), minlength=k)
+        variances.append(k / (k - 1) * float(np.sum(sums**2)) / v.size**2 if k > 1 else float("nan"))
+    if not means:
+        return float("nan"), float("nan")
+    return float(np.mean(means)), float(np.sqrt(np.sum(variances)) / len(means))
+
+
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
     """IoU of two silhouettes of the same shape, e.g. (H, W).
 

@@ -254,9 +254,12 @@ def _mean(values) -> float | None:
 
 
 def _se(values) -> float | None:
-    """Standard error of the mean over meshes (ddof 1); None with fewer than two meshes."""
+    """Standard error of the mean over meshes (each mesh one draw, one stratum); None with fewer than two meshes."""
+    from training.evaluation.metrics import category_mean_se
+
     vals = [v for v in values if v is not None]
-    return float(np.std(vals, ddof=1) / np.sqrt(len(vals))) if len(vals) > 1 else None
+    se = category_mean_se(vals, np.zeros(len(vals)))[1] if vals else float("nan")
+    return se if np.isfinite(se) else None
 
 
 def _paired(rows: list[dict], column: str, first: str) -> dict | None:
