@@ -118,6 +118,37 @@ def test_corrupt_newest_checkpoint_falls_back_to_the_previous(tmp_path):
         load_latest_checkpoint(tmp_path)
 
 
+def test_joint_with_a_frozen_predictor_moves_only_the_generator_and_by_the_mesh_loss_alone(data_dir, tmp_path):
+    # the predictor's weights and batch-norm statistics stay exactly as initialised (eval mode, no optimiser), while
+    # the mesh loss's gradient reaches the generator through it: with every generator loss of its own at weight 0
+    # the generator still moves, and it does not move when the mesh loss's weight is 0 too
+    base = Trainer(TrainConfig(mode="mesh", data_dir=str(data_dir), out_dir=str(tmp_path / "mesh"), iters=2, **TINY),
+                   progress=False)
+    base.run()
+    start_pred = {k: v.clone() for k, v in base.models["predictor"].state_dict().items()}
+    assert any("running_mean" in k for k in start_pred)
+
+    def joint(name: str, weight: float) -> Trainer:
+        t = Trainer(TrainConfig(mode="joint", data_dir=str(data_dir), out_dir=str(tmp_path / name), iters=2,
+                                init_mesh=str(tmp_path / "mesh"), freeze_predictor=True, lambda_adv=0.0, lambda_g=0.0,
+                                lambda_l=0.0, joint_mesh_weight=weight, lr_g=1e-3, **TINY), progress=False)
+        t.run()
+        return t
+
+    start_gen = {k: v.clone() for k, v in Trainer(TrainConfig(mode="joint", data_dir=str(data_dir), out_dir=str(tmp_path / "g0"),
+                                                             iters=1, **TINY), progress=False).models["generator"].state_dict().items()}
+    moved = joint("frozen", 1.0)
+    assert "predictor" not in moved.optimizers and not moved.models["predictor"].training
+    for k, v in moved.models["predictor"].state_dict().items():
+        assert torch.equal(v, start_pred[k]), k
+    assert moved.iteration == 2
+    assert any(not torch.equal(v, start_gen[k]) for k, v in moved.models["generator"].state_dict().items())
+    still = joint("zero", 0.0)
+    assert all(torch.equal(v, start_gen[k]) for k, v in still.models["generator"].state_dict().items())
+    with pytest.raises(ValueError, match="freeze_predictor needs mode joint"):
+        TrainConfig(mode="mesh", freeze_predictor=True)
+
+
 # ---------------------------------------------------------------------------- end to end
 
 

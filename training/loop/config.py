@@ -61,6 +61,9 @@ class TrainConfig:
         lambda_g, lambda_l: Eq. 10 weights of the global and local (Sobel-sampled) L1 terms.
         lambda_adv: weight of the adversarial term of the generator (1 in Eq. 10).
         joint_mesh_weight: weight of the mesh loss on the generator in joint mode.
+        freeze_predictor: joint mode only: hold the predictor fixed (eval mode, so its batch norms
+            keep their running statistics and a small batch cannot disturb them; no optimiser) and
+            fine-tune the generator alone to draw the normal images the predictor reads best.
         sobel_samples: pixels sampled per image for Eq. 9.
         sobel_threshold: Sobel magnitude above which a ground-truth pixel is an edge (a unit step gives 4).
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
@@ -167,6 +170,7 @@ class TrainConfig:
     lambda_l: float = 100.0
     lambda_adv: float = 1.0
     joint_mesh_weight: float = 1.0
+    freeze_predictor: bool = False
     sobel_samples: int = 512
     sobel_threshold: float = 0.5
     base_channels: int = 64
@@ -290,6 +294,9 @@ class TrainConfig:
             problems.append(f"sketch_size must be a multiple of 256 (8 U-Net levels), got {self.sketch_size}")
         if self.sobel_samples > self.sketch_size**2:
             problems.append(f"sobel_samples must be <= sketch_size^2, got {self.sobel_samples}")
+        if self.freeze_predictor and self.mode != "joint":
+            problems.append(f"freeze_predictor needs mode joint (it fine-tunes the generator through a fixed "
+                            f"predictor), got mode {self.mode!r}")
         if problems:
             raise ValueError("invalid training config: " + "; ".join(problems))
         if int(self.batch) == 0:

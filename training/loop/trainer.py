@@ -167,12 +167,13 @@ def build_models(cfg: TrainConfig) -> dict[str, nn.Module]:
 
 
 def build_optimizers(cfg: TrainConfig, models: dict[str, nn.Module]) -> dict[str, torch.optim.Optimizer]:
-    """RMSProp (lr 5e-5) for G and D, Adam (1e-4, (0.9, 0.999)) for the predictor (paper 4.1)."""
+    """RMSProp (lr 5e-5) for G and D, Adam (1e-4, (0.9, 0.999)) for the predictor (paper 4.1; none when
+    ``freeze_predictor``)."""
     opts: dict[str, torch.optim.Optimizer] = {}
     if "generator" in models:
         opts["generator"] = torch.optim.RMSprop(models["generator"].parameters(), lr=cfg.lr_g)
         opts["discriminator"] = torch.optim.RMSprop(models["discriminator"].parameters(), lr=cfg.lr_d)
-    if "predictor" in models:
+    if "predictor" in models and not cfg.freeze_predictor:
         opts["predictor"] = torch.optim.Adam(models["predictor"].parameters(), lr=cfg.lr_mesh, betas=cfg.betas)
     return opts
 
@@ -361,6 +362,8 @@ class Trainer:
 
         torch.manual_seed(cfg.seed)  # identical initialisation on every rank
         self.models = {k: m.to(self.device) for k, m in build_models(cfg).items()}
+        if cfg.freeze_predictor:  # gradients still flow through it to the generator's image
+            self.models["predictor"].requires_grad_(False)
         self.optimizers = build_optimizers(cfg, self.models)
         self.mesh_loss = None
         if cfg.uses_predictor:
@@ -391,7 +394,7 @@ class Trainer:
             from torch.nn.parallel import DistributedDataParallel as DDP
 
             ids = [self.device.index] if self.device.type == "cuda" else None
-            self.wrapped = {k: DDP(m, device_ids=ids) for k, m in self.models.items()}
+            self.wrapped = {k: DDP(m, device_ids=ids) if k in self.optimizers else m for k, m in self.models.items()}
         self.log_columns = self._log_columns()
         self._window: dict[str, list[float]] = {}
         self._surface_cache: dict[tuple[str, str], torch.Tensor] = {}  # supervision="3d": true surface points per shape
@@ -438,6 +441,11 @@ class Trainer:
                 group["lr"] = lrs[name]
                 if "betas" in group:
                     group["betas"] = self.cfg.betas
+
+    def _train_modes(self) -> None:
+        """Every network in train mode, except a frozen predictor (eval: its batch norms' running statistics)."""
+        for name, m in self.models.items():
+            m.train(not (name == "predictor" and self.cfg.freeze_predictor))
 
     def _set_learning_rates(self, it: int) -> None:
         """The predictor's schedule: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)`` of
@@ -764,8 +772,7 @@ class Trainer:
         try:
             image = validation_grid(self.models, batch, self.cfg, self.faces if self.cfg.uses_predictor else None)
         finally:
-            for m in self.models.values():
-                m.train()
+            self._train_modes()
         path = self.run_dir / "val" / f"iter_{self.iteration:05d}.png"
         write_png(path, image)
         return path
@@ -780,8 +787,7 @@ class Trainer:
         if self.info.is_main:
             self.run_dir.mkdir(parents=True, exist_ok=True)
             self._prepare_log()
-        for m in self.models.values():
-            m.train()
+        self._train_modes()
         if self.iteration >= cfg.iters:
             self._event(f"nothing to do: the run is at iteration {self.iteration} >= --iters {cfg.iters}")
             return {}
