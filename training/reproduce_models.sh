@@ -138,6 +138,10 @@
 #   validation set nothing trained on or was chosen by) and check-*-v27 scores the twenty-first and the three CPU
 #   passes on it; eval-big-*-v27 the bundled twenty-first on ten times eval-*-v26's test sketches; control-v27 and
 #   eval-control-*-v27 full minus silhouette-only over predictor-v27-low's continuation.
+# The end-to-end fine-tune of the twenty-first pair (2026-11-28, a third session; no GPU lent): joint-pilot-v28 sets
+#   the generator's rate and the mesh loss's weight on DATA72 (260 strongly augmented sketches), joint-v28 fine-tunes
+#   the fifth generator through the twenty-first predictor held fixed (`train joint --freeze-predictor`) on DATA70
+#   into RUNS28 [runs/v28], check-*-v28 sets it against the twenty-first pair on DATA72 (OUT28 [out/v28]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -225,6 +229,8 @@ OUT27=${OUT27:-out/v27}
 RUNS27=${RUNS27:-runs/v27}
 DATA70=${DATA70:-data/fresh600v4}
 DATA72=${DATA72:-data/check1200v4}
+RUNS28=${RUNS28:-runs/v28}
+OUT28=${OUT28:-out/v28}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -303,6 +309,18 @@ v27_start() {  # what a training step from the twenty-first on DATA70 needs ($1 
   # clear error) and the twenty-first imported as a run (import-v27 when it is not there)
   [ -f "$DATA70/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA70: run data-v27 generated-v27 generated-mirror-v27 first" >&2; exit 1; }
   [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+}
+
+joint28() {  # the end-to-end fine-tune of the twenty-first pair: the fifth generator (import-v8) trained through the
+  # twenty-first predictor held fixed (import-v27) on DATA70, into run $1 for $2 iterations at batch 4 on two threads,
+  # generator rate $3 (RMSProp), mesh-loss weight $4, then more `train joint` flags (the adversarial term off: the
+  # imported generator comes without its discriminator); resumes
+  v27_start "joint"
+  local run=$1 iters=$2 lr=$3 weight=$4; shift 4
+  sketchmesh train joint --data "$DATA70" --init-normals "$RUNS8/fifth/generator" --init-mesh "$RUNS27/twentyfirst/predictor" \
+    $BIG_ARCH --predictor-aligned 128 --base-channels 16 --generator-arch resize --freeze-predictor --lambda-adv 0 \
+    --no-normal-edges --lr-g "$lr" --joint-mesh-weight "$weight" --iters "$iters" --batch 4 --threads 2 --val-every 0 \
+    --ckpt-every 250 --log-every 20 --quiet --out "$run" "$@"
 }
 
 recipe20() {  # predictor-v19's batch-32 recipe on DATA20 (the larger predictor with the aligned branch, mirror-consistency 50,
@@ -1842,6 +1860,33 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA72" ;;
+    joint-pilot-v28)  # the fine-tune's rate and weight, four short runs (about 2 min per 200 iterations) against the
+      # twenty-first pair on 260 strongly augmented sketches of DATA72, plain and +mirror: RMSProp at the generator's own
+      # 5e-5 (weights 1, 30; 200 it) and at 5e-6 (weight 30, 200 it; weight 1000 and the mesh loss alone, 500 it)
+      # into RUNS28/pilot_*, OUT28/pilot_5e-5 and OUT28/pilot_5e-6
+      [ -f "$DATA72/manifest.json" ] || step data-v27-check
+      joint28 "$RUNS28/pilot_fast_w1" 200 5e-5 1
+      joint28 "$RUNS28/pilot_fast_w30" 200 5e-5 30
+      joint28 "$RUNS28/pilot_w30" 200 5e-6 30
+      joint28 "$RUNS28/pilot_w1000" 500 5e-6 1000
+      joint28 "$RUNS28/pilot_mesh" 500 5e-6 1 --lambda-g 0 --lambda-l 0
+      local rate runs
+      for rate in 5e-5 5e-6; do
+        runs=(fast_w1 fast_w30); [ $rate = 5e-6 ] && runs=(w30 w1000 mesh)
+        sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
+          "${runs[@]/#/--baseline-run=$RUNS28/pilot_}" --no-retrieval --mirror-average --augment-strength 1.0 \
+          --max-samples 260 --threads 2 --quiet --out "$OUT28/pilot_$rate"
+      done ;;
+    joint-v28)  # the fine-tune: rate 5e-6, weight 1000 (joint-pilot-v28), V28_ITERS [4800] iterations (19,200 sketches,
+      # 0.6 of DATA70's views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
+      joint28 "$RUNS28/joint" "${V28_ITERS:-4800}" 5e-6 1000 --max-minutes "${V28_MINUTES:-50}" ;;
+    check-v28|check-strong-v28|check-side-v28)  # the fine-tuned pair (joint-v28's run: its own generator) against the
+      # twenty-first pair on DATA72 (CHECK_SAMPLES [520] sketches per case), plain and +mirror, into OUT28/check_*
+      [ -f "$DATA72/manifest.json" ] || step data-v27-check
+      eval_case "${1/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS28/joint" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "${CHECK_SAMPLES:-520}" --threads 2 \
+        --out "$OUT28/check_${EVAL_NAME#eval_}" ;;
     check-v27|check-strong-v27|check-side-v27)  # is the twenty-first's lead over the CPU passes the validation split's
       # choice? The twenty-first against predictor-v27's, -low's and -b512's runs on DATA72 (CHECK_SAMPLES [520] sketches
       # per case), plain and +mirror, into OUT27/check_*
