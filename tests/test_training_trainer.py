@@ -149,6 +149,28 @@ def test_joint_with_a_frozen_predictor_moves_only_the_generator_and_by_the_mesh_
         TrainConfig(mode="mesh", freeze_predictor=True)
 
 
+def test_generator_dropout_off_trains_the_generator_as_it_runs_at_inference(data_dir, tmp_path):
+    # pix2pix's dropout makes two training-mode passes over one sketch differ; without it a training-mode pass is
+    # the inference pass (eval mode) exactly, while the rest of the generator stays in training mode
+    sketch = torch.from_numpy(np.random.default_rng(0).random((1, 1, 256, 256), dtype=np.float32))
+    outs = {}
+    for flag in (True, False):
+        t = Trainer(TrainConfig(mode="joint", data_dir=str(data_dir), out_dir=str(tmp_path / str(flag)), iters=1,
+                                generator_dropout=flag, **TINY), progress=False)
+        t._train_modes()
+        g = t.models["generator"]
+        assert g.training
+        with torch.no_grad():
+            a, b = g(sketch), g(sketch)
+            g.eval()
+            ref = g(sketch)
+        outs[flag] = (a, b, ref)
+    a, b, ref = outs[True]
+    assert not torch.equal(a, b)
+    a, b, ref = outs[False]
+    assert torch.equal(a, b) and torch.equal(a, ref)
+
+
 # ---------------------------------------------------------------------------- end to end
 
 

@@ -64,6 +64,9 @@ class TrainConfig:
         freeze_predictor: joint mode only: hold the predictor fixed (eval mode, so its batch norms
             keep their running statistics and a small batch cannot disturb them; no optimiser) and
             fine-tune the generator alone to draw the normal images the predictor reads best.
+        generator_dropout: the generator's dropout (pix2pix's noise) is on while it trains (True, the
+            default); False trains it as it runs at inference, dropout off, e.g. for a fine-tune through
+            the predictor, whose loss should judge the image the app will see.
         sobel_samples: pixels sampled per image for Eq. 9.
         sobel_threshold: Sobel magnitude above which a ground-truth pixel is an edge (a unit step gives 4).
         base_channels: generator / discriminator width (64 = paper; 32 or 16 for speed).
@@ -171,6 +174,7 @@ class TrainConfig:
     lambda_adv: float = 1.0
     joint_mesh_weight: float = 1.0
     freeze_predictor: bool = False
+    generator_dropout: bool = True
     sobel_samples: int = 512
     sobel_threshold: float = 0.5
     base_channels: int = 64

@@ -443,9 +443,14 @@ class Trainer:
                     group["betas"] = self.cfg.betas
 
     def _train_modes(self) -> None:
-        """Every network in train mode, except a frozen predictor (eval: its batch norms' running statistics)."""
+        """Every network in train mode, except a frozen predictor (eval: its batch norms' running statistics) and,
+        without ``generator_dropout``, the generator's dropout layers."""
         for name, m in self.models.items():
             m.train(not (name == "predictor" and self.cfg.freeze_predictor))
+            if name == "generator" and not self.cfg.generator_dropout:
+                for layer in m.modules():
+                    if isinstance(layer, nn.Dropout):
+                        layer.eval()
 
     def _set_learning_rates(self, it: int) -> None:
         """The predictor's schedule: step ``it`` (0-based) runs at ``min(1, (it + 1) / lr_warmup)`` of
