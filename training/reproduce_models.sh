@@ -1862,7 +1862,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --views-per-shape 4 --splits train --workers 2 --out "$DATA72" ;;
     joint-pilot-v28)  # the fine-tune's rate and weight, four short runs (about 2 min per 200 iterations) against the
       # twenty-first pair on 260 strongly augmented sketches of DATA72, plain and +mirror: RMSProp at the generator's own
-      # 5e-5 (weights 1, 30; 200 it) and at 5e-6 (weight 30, 200 it; weight 1000 and the mesh loss alone, 500 it)
+      # 5e-5 (weights 1, 30; 200 it) and at 5e-6 (weight 30, 200 it; weight 1000, the mesh loss alone, and weight 1000
+      # with the generator's dropout off, as it runs in the app: 500 it)
       # into RUNS28/pilot_*, OUT28/pilot_5e-5 and OUT28/pilot_5e-6
       [ -f "$DATA72/manifest.json" ] || step data-v27-check
       joint28 "$RUNS28/pilot_fast_w1" 200 5e-5 1
@@ -1870,9 +1871,10 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       joint28 "$RUNS28/pilot_w30" 200 5e-6 30
       joint28 "$RUNS28/pilot_w1000" 500 5e-6 1000
       joint28 "$RUNS28/pilot_mesh" 500 5e-6 1 --lambda-g 0 --lambda-l 0
+      joint28 "$RUNS28/pilot_nodrop" 500 5e-6 1000 --no-generator-dropout
       local rate runs
       for rate in 5e-5 5e-6; do
-        runs=(fast_w1 fast_w30); [ $rate = 5e-6 ] && runs=(w30 w1000 mesh)
+        runs=(fast_w1 fast_w30); [ $rate = 5e-6 ] && runs=(w30 w1000 mesh nodrop)
         sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
           "${runs[@]/#/--baseline-run=$RUNS28/pilot_}" --no-retrieval --mirror-average --augment-strength 1.0 \
           --max-samples 260 --threads 2 --quiet --out "$OUT28/pilot_$rate"
@@ -1880,6 +1882,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     joint-v28)  # the fine-tune: rate 5e-6, weight 1000 (joint-pilot-v28), V28_ITERS [4800] iterations (19,200 sketches,
       # 0.6 of DATA70's views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
       joint28 "$RUNS28/joint" "${V28_ITERS:-4800}" 5e-6 1000 --max-minutes "${V28_MINUTES:-50}" ;;
+    logs-v28)  # joint-v28's run: the losses over its first and last iterations
+      log_summary "$RUNS28" joint ;;
     check-v28|check-strong-v28|check-side-v28)  # the fine-tuned pair (joint-v28's run: its own generator) against the
       # twenty-first pair on DATA72 (CHECK_SAMPLES [520] sketches per case), plain and +mirror, into OUT28/check_*
       [ -f "$DATA72/manifest.json" ] || step data-v27-check
