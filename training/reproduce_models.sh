@@ -1860,7 +1860,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA72" ;;
-    joint-pilot-v28)  # the fine-tune's rate and weight, four short runs (about 2 min per 200 iterations) against the
+    joint-pilot-v28)  # the fine-tune's rate and weight, six short runs (about 2 min per 200 iterations) against the
       # twenty-first pair on 260 strongly augmented sketches of DATA72, plain and +mirror: RMSProp at the generator's own
       # 5e-5 (weights 1, 30; 200 it) and at 5e-6 (weight 30, 200 it; weight 1000, the mesh loss alone, and weight 1000
       # with the generator's dropout off, as it runs in the app: 500 it)
@@ -1880,7 +1880,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
           --max-samples 260 --threads 2 --quiet --out "$OUT28/pilot_$rate"
       done ;;
     joint-v28)  # the fine-tune: rate 5e-6, weight 1000 (joint-pilot-v28), V28_ITERS [4800] iterations (19,200 sketches,
-      # 0.6 of DATA70's views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
+      # 0.77 of DATA70's 25,060 views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
       joint28 "$RUNS28/joint" "${V28_ITERS:-4800}" 5e-6 1000 --max-minutes "${V28_MINUTES:-50}" ;;
     logs-v28)  # joint-v28's run: the losses over its first and last iterations
       log_summary "$RUNS28" joint ;;
