@@ -298,11 +298,12 @@ compare_pairs() {  # $1: an OUT folder; then commits: their bundled pairs (from 
 train7() {  # the seventh predictor's recipe from run $1 into run $2: $3 iterations (Adam 2e-4 cosine), $4 minutes at most,
   # $5 threads, normal weight $6 [0.002] (its gradient kept off the outline), on the generator's images with half of every
   # batch mirrored from the generator's images of the flipped drawings; resumes (TRAIN_LR: another peak rate;
-  # TRAIN_DATA: another dataset than DATA2 with the same generated sets)
+  # TRAIN_DATA: another dataset than DATA2 with the same generated sets; TRAIN_INPUTS: another generated set than
+  # normals16, with its NAME_mirror)
   # shellcheck disable=SC2086  # PRED_ARCH: predictor size flags of a run of another size (BIG_ARCH); TRAIN_EXTRA: more flags
   sketchmesh train mesh --data "${TRAIN_DATA:-$DATA2}" --init-mesh "$1" ${PRED_ARCH:-} ${TRAIN_EXTRA:-} --lambda-n "${6:-0.002}" --lr-mesh "${TRAIN_LR:-2e-4}" --iters "$3" \
-    --threads "$5" --ckpt-every 250 --val-every 0 --quiet --max-minutes "$4" --input-normals normals16 \
-    --no-normal-edges --mirror 0.5 --mirror-inputs normals16_mirror --out "$2"
+    --threads "$5" --ckpt-every 250 --val-every 0 --quiet --max-minutes "$4" --input-normals "${TRAIN_INPUTS:-normals16}" \
+    --no-normal-edges --mirror 0.5 --mirror-inputs "${TRAIN_INPUTS:-normals16}_mirror" --out "$2"
 }
 
 v27_start() {  # what a training step from the twenty-first on DATA70 needs ($1 the step): the generated sets (or a
@@ -1882,6 +1883,25 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     joint-v28)  # the fine-tune: rate 5e-6, weight 1000 (joint-pilot-v28), V28_ITERS [4800] iterations (19,200 sketches,
       # 0.77 of DATA70's 25,060 views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
       joint28 "$RUNS28/joint" "${V28_ITERS:-4800}" 5e-6 1000 --max-minutes "${V28_MINUTES:-50}" ;;
+    generated-v28-strong|generated-mirror-v28-strong)  # generated-v27's images drawn from DATA70's sketches at the strong
+      # augmentation the strong case is scored at (1.0; the predictor's generated sets so far used 0.5): normals16_s1 and
+      # normals16_s1_mirror, 8 min each on 2 cores; resume
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16_s1); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_s1_mirror --mirror)
+      sketchmesh data generated "$DATA70" --models "$OUT8/models_fifth" "${name[@]}" --augment-strength 1.0 --workers 2 ;;
+    predictor-v28-strong)  # predictor-v27-low (the twenty-first on DATA70 at 2e-5, 1,300 iterations) on the generator's
+      # images of strongly augmented drawings instead (generated-*-v28-strong), into RUNS28/strong_inputs
+      # (V28_STRONG_MINUTES [25] at most; resumes)
+      v27_start "$1"
+      [ -f "$DATA70/.cache/generated/normals16_s1_mirror/info.json" ] || { echo "$1 reads normals16_s1: run generated-v28-strong generated-mirror-v28-strong first" >&2; exit 1; }
+      TRAIN_INPUTS=normals16_s1 RECIPE_LR=${V27_LOW_LR:-2e-5} DATA20=$DATA70 recipe20 "$RUNS27/twentyfirst/predictor" \
+        "$RUNS28/strong_inputs" "${V27_LOW_ITERS:-1300}" "${V28_STRONG_MINUTES:-25}" 2 ;;
+    check-v28-strong|check-strong-v28-strong|check-side-v28-strong)  # predictor-v28-strong's run against the twenty-first
+      # and predictor-v27-low (the same pass on the 0.5 images) on DATA72, as check-*-v28, into OUT28/strong_inputs_*
+      local c=${1%-strong}; eval_case "${c/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
+        --baseline-run "$RUNS28/strong_inputs" --baseline-run "$RUNS27/v27_low" --no-retrieval "${EVAL_EXTRA[@]}" \
+        --max-samples "${CHECK_SAMPLES:-520}" --threads 2 --out "$OUT28/strong_inputs_${EVAL_NAME#eval_}" ;;
     logs-v28)  # joint-v28's run: the losses over its first and last iterations
       log_summary "$RUNS28" joint ;;
     check-v28|check-strong-v28|check-side-v28)  # the fine-tuned pair (joint-v28's run: its own generator) against the
