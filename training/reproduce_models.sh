@@ -142,6 +142,9 @@
 #   the generator's rate and the mesh loss's weight on DATA72 (260 strongly augmented sketches), joint-v28 fine-tunes
 #   the fifth generator through the twenty-first predictor held fixed (`train joint --freeze-predictor`) on DATA70
 #   into RUNS28 [runs/v28], check-*-v28 sets it against the twenty-first pair on DATA72 (OUT28 [out/v28]).
+#   generated-*-v28-strong draw DATA70's generated sets from strongly augmented drawings (1.0, the strong case's; so far
+#   0.5), predictor-v28-strong trains the twenty-first on them as predictor-v27-low did on the 0.5 sets, and
+#   check-*-v28-strong sets the two passes against the twenty-first on DATA72.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
