@@ -315,6 +315,15 @@ v27_start() {  # what a training step from the twenty-first on DATA70 needs ($1 
   [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
 }
 
+check72() {  # the twenty-first pair (import-v27's run with the fifth generator) against the runs $2... on DATA72 (rendered
+  # when absent; its train split), in EVAL_EXTRA's case, CHECK_SAMPLES [520] sketches, into $1
+  [ -f "$DATA72/manifest.json" ] || step data-v27-check
+  local out=$1 runs=() r; shift
+  for r in "$@"; do runs+=(--baseline-run "$r"); done
+  sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
+    "${runs[@]}" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "${CHECK_SAMPLES:-520}" --threads 2 --out "$out"
+}
+
 joint28() {  # the end-to-end fine-tune of the twenty-first pair: the fifth generator (import-v8) trained through the
   # twenty-first predictor held fixed (import-v27) on DATA70, into run $1 for $2 iterations at batch 4 on two threads,
   # generator rate $3 (RMSProp), mesh-loss weight $4, then more `train joint` flags (the adversarial term off: the
@@ -1869,20 +1878,15 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # 5e-5 (weights 1, 30; 200 it) and at 5e-6 (weight 30, 200 it; weight 1000, the mesh loss alone, and weight 1000
       # with the generator's dropout off, as it runs in the app: 500 it)
       # into RUNS28/pilot_*, OUT28/pilot_5e-5 and OUT28/pilot_5e-6
-      [ -f "$DATA72/manifest.json" ] || step data-v27-check
       joint28 "$RUNS28/pilot_fast_w1" 200 5e-5 1
       joint28 "$RUNS28/pilot_fast_w30" 200 5e-5 30
       joint28 "$RUNS28/pilot_w30" 200 5e-6 30
       joint28 "$RUNS28/pilot_w1000" 500 5e-6 1000
       joint28 "$RUNS28/pilot_mesh" 500 5e-6 1 --lambda-g 0 --lambda-l 0
       joint28 "$RUNS28/pilot_nodrop" 500 5e-6 1000 --no-generator-dropout
-      local rate runs
-      for rate in 5e-5 5e-6; do
-        runs=(fast_w1 fast_w30); [ $rate = 5e-6 ] && runs=(w30 w1000 mesh nodrop)
-        sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
-          "${runs[@]/#/--baseline-run=$RUNS28/pilot_}" --no-retrieval --mirror-average --augment-strength 1.0 \
-          --max-samples 260 --threads 2 --quiet --out "$OUT28/pilot_$rate"
-      done ;;
+      EVAL_EXTRA=(--mirror-average --augment-strength 1.0 --quiet)
+      CHECK_SAMPLES=260 check72 "$OUT28/pilot_5e-5" "$RUNS28"/pilot_fast_w{1,30}
+      CHECK_SAMPLES=260 check72 "$OUT28/pilot_5e-6" "$RUNS28"/pilot_{w30,w1000,mesh,nodrop} ;;
     joint-v28)  # the fine-tune: rate 5e-6, weight 1000 (joint-pilot-v28), V28_ITERS [4800] iterations (19,200 sketches,
       # 0.77 of DATA70's 25,060 views), V28_MINUTES [50] at most, into RUNS28/joint; resumes
       joint28 "$RUNS28/joint" "${V28_ITERS:-4800}" 5e-6 1000 --max-minutes "${V28_MINUTES:-50}" ;;
@@ -1902,26 +1906,18 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     check-v28-strong|check-strong-v28-strong|check-side-v28-strong)  # predictor-v28-strong's run against the twenty-first
       # and predictor-v27-low (the same pass on the 0.5 images) on DATA72, as check-*-v28, into OUT28/strong_inputs_*
       local c=${1%-strong}; eval_case "${c/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS28/strong_inputs" --baseline-run "$RUNS27/v27_low" --no-retrieval "${EVAL_EXTRA[@]}" \
-        --max-samples "${CHECK_SAMPLES:-520}" --threads 2 --out "$OUT28/strong_inputs_${EVAL_NAME#eval_}" ;;
+      check72 "$OUT28/strong_inputs_${EVAL_NAME#eval_}" "$RUNS28/strong_inputs" "$RUNS27/v27_low" ;;
     logs-v28)  # joint-v28's run: the losses over its first and last iterations
       log_summary "$RUNS28" joint ;;
     check-v28|check-strong-v28|check-side-v28)  # the fine-tuned pair (joint-v28's run: its own generator) against the
       # twenty-first pair on DATA72 (CHECK_SAMPLES [520] sketches per case), plain and +mirror, into OUT28/check_*
-      [ -f "$DATA72/manifest.json" ] || step data-v27-check
       eval_case "${1/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS28/joint" --no-retrieval "${EVAL_EXTRA[@]}" --max-samples "${CHECK_SAMPLES:-520}" --threads 2 \
-        --out "$OUT28/check_${EVAL_NAME#eval_}" ;;
+      check72 "$OUT28/check_${EVAL_NAME#eval_}" "$RUNS28/joint" ;;
     check-v27|check-strong-v27|check-side-v27)  # is the twenty-first's lead over the CPU passes the validation split's
       # choice? The twenty-first against predictor-v27's, -low's and -b512's runs on DATA72 (CHECK_SAMPLES [520] sketches
       # per case), plain and +mirror, into OUT27/check_*
-      [ -f "$DATA72/manifest.json" ] || step data-v27-check
       eval_case "${1/check-/eval-}"; EVAL_EXTRA+=(--mirror-average)
-      sketchmesh eval "$RUNS27/twentyfirst/predictor" --data "$DATA72" --split train --generator-run "$RUNS8/fifth/generator" \
-        --baseline-run "$RUNS27/v27_low" --baseline-run "$RUNS27/v27_b512" --baseline-run "$RUNS27/v27_fresh" --no-retrieval \
-        "${EVAL_EXTRA[@]}" --max-samples "${CHECK_SAMPLES:-520}" --threads 2 --out "$OUT27/check_${EVAL_NAME#eval_}" ;;
+      check72 "$OUT27/check_${EVAL_NAME#eval_}" "$RUNS27/v27_low" "$RUNS27/v27_b512" "$RUNS27/v27_fresh" ;;
     generated-v27|generated-mirror-v27)  # generated-v26's images (the same generator and settings) on DATA70; resume
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
