@@ -267,3 +267,29 @@ def test_mirror_average_adds_a_row_per_folder_scored_as_the_engine_with_it_on(wo
         pred = SketchEngine(world["tiny"], threads=1, cache_size=0, mirror_average=on).predict(sketch)
         assert pred.mirror_average is on
         assert view["iou"][label] == pytest.approx(_world_iou(pred.mesh, rot, gt), abs=1e-12)
+
+
+@pytest.mark.parametrize("path", ["image", "canvas"])
+def test_sketch_path_feeds_the_engine_the_drawing_as_that_app_path_makes_it(world, tmp_path, path):
+    """`--sketch-path image`: the stored drawing through the engine's image-file preprocessing; `canvas`: its
+    polylines drawn as the canvas draws strokes. Redo one view by hand each way."""
+    from engine.preprocess import preprocess_raster, rasterize_strokes
+    from engine.strokes import Stroke
+    from training.data.render import view_polylines
+
+    out = tmp_path / "p.json"
+    assert main(["eval", "--models", str(world["tiny"]), "--sketch-path", path, "--data", str(world["data"]), "--split",
+                 "all", "--no-retrieval", "--threads", "1", "--quiet", "--out", str(tmp_path), "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    assert res["sketch_path"] == path
+    assert "image-file" in (tmp_path / "eval_models_all.md").read_text() or path == "canvas"
+    _, view, sketch, rot, gt = _brick_view(world, res, 1)
+    if path == "image":
+        fed = preprocess_raster(sketch)
+    else:
+        with _shape_file(world, "brick") as z:
+            arrays = {k: z[k] for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+        fed = rasterize_strokes([Stroke(p) for p in view_polylines(arrays, view["view"])])
+    assert not np.array_equal(fed, sketch)
+    pred = SketchEngine(world["tiny"], threads=1, cache_size=0).predict(fed).mesh
+    assert view["iou"]["tiny"] == pytest.approx(_world_iou(pred, rot, gt), abs=1e-12)

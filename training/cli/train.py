@@ -376,6 +376,11 @@ def register(commands, bench) -> None:
     p.add_argument("--out", metavar="DIR",
                    help="folder for the markdown table, JSON and figure (default RUN/eval, or DATA/eval with --models)")
     p.add_argument("--augment-strength", type=unit_float, default=0.0, help="sketch augmentation of the test sketches")
+    p.add_argument("--sketch-path", choices=("stored", "image", "canvas"), default="stored",
+                   help="how a test sketch reaches the generator: stored (default) the dataset's raster as it is; "
+                   "image: through the engine's image-file preprocessing (binarise, reframe, thin, redraw at the "
+                   "standard width in full ink), as the app treats a scanned drawing; canvas: its strokes drawn as the "
+                   "app's canvas draws a pen drawing (framed on the points, standard width, full ink)")
     p.add_argument("--gt-normals", action="store_true",
                    help="feed the predictor the ground-truth normal images instead of the generator's")
     p.add_argument("--generator-run", metavar="RUN", help="take the generator from this run (default: RUN)")

@@ -901,6 +901,26 @@ class ShapeViewDataset(_DatasetBase):
                 out[sel] = g.rows(rows[sel])
         return out
 
+    def view_strokes(self, i: int) -> list[np.ndarray]:
+        """The polylines item ``i``'s sketch is drawn from: (N_k, 2) pixel coordinates (x = col, y = row).
+
+        With ``augment_strength`` > 0 they are the hand-drawn ones of the item's sketch (the same seed),
+        otherwise the clean ones; stroke widths and ink, which the app's canvas does not have, are left out.
+        """
+        from training.data.augment import augment_strokes
+        from training.data.render import view_polylines
+
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"index {i} out of range for a dataset of {len(self)} views")
+        i = int(i) % len(self)
+        si, v = self._items[i]
+        p = self._path(self._shapes[si])
+        arrays = {k: self._cache.get(p, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+        clean = view_polylines(arrays, v)
+        if self.augment_strength <= 0:
+            return clean
+        return augment_strokes(clean, self.augment_strength, [self.seed, i], self.size).polylines
+
     def item(self, i: int, fields: str = "all") -> dict:
         """Item ``i`` with ``fields`` ("all" or "mesh"; see the class docstring)."""
         torch = _torch()

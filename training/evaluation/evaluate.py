@@ -26,9 +26,17 @@ Baselines in the same table:
   made from the drawing flipped left to right, mirrored back (the engine's ``mirror_average``;
   :func:`engine.icosphere.mirror_average`), at twice the networks' cost.
 
-Outputs: a markdown table (printed and written to ``OUT/eval_<split>.md``), JSON (``--json PATH``
-and ``OUT/eval_<split>.json``) and a bar chart ``OUT/eval_<split>.png``. Every method's row carries its
-cost (milliseconds of network inference per sample on this machine).
+``--sketch-path`` says how a test sketch reaches the generator:
+
+* ``stored`` (the default, the measure of every earlier table): the dataset's raster as it is; an
+  augmented one (``--augment-strength``) keeps grey, thinner or thicker strokes and an unframed
+  shift and scale, which no input of the app reaches the generator with;
+* ``image``: the engine's image-file path (:func:`engine.preprocess.preprocess_raster`: binarised at
+  the ink threshold, reframed on its centre lines, thinned and redrawn at the standard width in full
+  ink), as the app treats a scanned or photographed drawing;
+* ``canvas``: the drawing's strokes (the hand-drawn ones with ``--augment-strength``) drawn by
+  :func:`engine.preprocess.rasterize_strokes`, framed on their points at the standard width in full
+  ink, as the app's canvas feeds the generator a drawing made with the pen.
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ from engine.icosphere import mirror_average
 from engine.mesh import Mesh
 from training.data.mirror import mirror_normal_image
 from training.evaluation.metrics import ELEVATION_TOL, category_mean_se, world_vertices
+from training.evaluation.models_eval import SKETCH_PATHS
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
 
@@ -186,6 +195,57 @@ def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarr
     return out.silhouette.numpy() > 0.5
 
 
+def engine_sketches(sketches: torch.Tensor, names: list | None = None) -> torch.Tensor:
+    """(N, 1, 256, 256) stored sketches -> the same as the engine's image-file path makes them.
+
+    Each goes through :func:`engine.preprocess.preprocess_raster` (what ``SketchEngine.predict`` does
+    to an image file after decoding it), so a scored sketch is one the app could have fed its generator.
+
+    Raises:
+        EvaluationError: a sketch the engine would refuse (no ink above the threshold), named by
+            ``names[i]`` (category, shape id, view) when given.
+    """
+    from engine.contract import SKETCH_SIZE
+    from engine.errors import EmptySketchError, SketchInputError
+    from engine.preprocess import preprocess_raster
+
+    a = sketches.detach().cpu().float().numpy()
+    if a.ndim != 4 or a.shape[1] != 1:
+        raise ValueError(f"engine_sketches takes (N, 1, H, W) sketches, got {tuple(a.shape)}")
+    out = np.empty((a.shape[0], 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
+    for i, sketch in enumerate(a[:, 0]):
+        try:
+            out[i, 0] = preprocess_raster(sketch)
+        except (EmptySketchError, SketchInputError) as e:
+            who = f" {names[i]}" if names is not None else ""
+            raise EvaluationError(f"sketch{who}: the engine refuses it ({e})") from e
+    return torch.from_numpy(out)
+
+
+def canvas_sketches(drawings: list, names: list | None = None) -> torch.Tensor:
+    """Drawings (each a list of (N, 2) pixel polylines) -> (N, 1, 256, 256) as the app's canvas would feed them.
+
+    Each drawing's polylines become :class:`engine.strokes.Stroke` s and go through
+    :func:`engine.preprocess.rasterize_strokes` (framed on their points, the standard width, full ink).
+
+    Raises:
+        EvaluationError: a drawing the engine refuses (no strokes), named by ``names[i]`` when given.
+    """
+    from engine.contract import SKETCH_SIZE
+    from engine.errors import EmptySketchError, SketchInputError
+    from engine.preprocess import rasterize_strokes
+    from engine.strokes import Stroke
+
+    out = np.empty((len(drawings), 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
+    for i, polylines in enumerate(drawings):
+        try:
+            out[i, 0] = rasterize_strokes([Stroke(np.asarray(p, np.float64)) for p in polylines])
+        except (EmptySketchError, SketchInputError) as e:
+            who = f" {names[i]}" if names is not None else ""
+            raise EvaluationError(f"sketch{who}: the engine refuses it ({e})") from e
+    return torch.from_numpy(out)
+
+
 def _pair_metrics(pred: Mesh, gt: Mesh, gt_voxels: np.ndarray, resolution: int, surface: bool = True) -> dict[str, float]:
     from training.evaluation.metrics import solid_voxels, surface_metrics
 
@@ -245,6 +305,7 @@ def evaluate(
     elevation: float | None = None,
     mirror: bool = False,
     retrieval_data: str | Path | None = None,
+    sketch_path: str = "stored",
 ) -> dict:
     """Evaluate a run (and baselines) on a split; see the module docstring.
 
@@ -267,6 +328,8 @@ def evaluate(
         mirror: also score every run as ``NAME +mirror`` (module doc).
         retrieval_data: dataset whose train split the retrieval baseline searches (default
             ``data_dir``): a run trained on a larger dataset is set against retrieval from the shapes it saw.
+        sketch_path: "stored", "image" or "canvas": how a test sketch reaches the generator
+            (:data:`training.evaluation.models_eval.SKETCH_PATHS`, module doc).
 
     Returns:
         ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
@@ -277,6 +340,10 @@ def evaluate(
     from training.loop.trainer import load_run, make_dataset
 
     t_start = time.perf_counter()
+    if sketch_path not in SKETCH_PATHS:
+        raise EvaluationError(f"sketch path must be one of {', '.join(SKETCH_PATHS)}, got {sketch_path!r}")
+    if sketch_path != "stored" and gt_normals:
+        raise EvaluationError("a sketch path applies to sketches; with ground-truth normals no sketch is used")
     if voxel_resolution < 4:
         raise EvaluationError(f"voxel resolution must be >= 4, got {voxel_resolution}")
     gen_fallback = None
@@ -342,6 +409,10 @@ def evaluate(
         items = [test_set[int(i)] for i in indices[s:s + EVAL_BATCH]]
         batch = {k: torch.as_tensor(np.stack([np.asarray(it[k]) for it in items]))
                  for k in ("sketch", "normals64", "silhouette64", "camera")}
+        if sketch_path != "stored":
+            names = [(it["category"], it["shape_id"], int(it["view"])) for it in items]
+            batch["sketch"] = (engine_sketches(batch["sketch"], names) if sketch_path == "image" else
+                               canvas_sketches([test_set.view_strokes(int(i)) for i in indices[s:s + EVAL_BATCH]], names))
         cams = batch["camera"].numpy().astype(np.float64)
         for method in methods:
             verts, retrieved = method.predict(batch)
@@ -392,6 +463,7 @@ def evaluate(
         "voxel_resolution": int(voxel_resolution),
         "voxel_surface": bool(voxel_surface),
         "retrieval_data": str(retrieval_data or data_dir) if retrieval else None,
+        "sketch_path": sketch_path,
         "seconds": time.perf_counter() - t_start,
     }
 
@@ -407,6 +479,8 @@ def markdown_table(result: dict) -> str:
         what.append("ground-truth normals")
     elif result.get("augment_strength"):
         what.append(f"sketches augmented at strength {result['augment_strength']:g}")
+    if result.get("sketch_path", "stored") != "stored":
+        what.append(SKETCH_PATHS[result["sketch_path"]])
     if not result.get("voxel_surface", True):
         what.append("voxels by cell centres only")
     if result.get("retrieval_data") and "retrieval" in names:
@@ -516,7 +590,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         baseline_runs=tuple(args.baseline_run), retrieval=not args.no_retrieval, max_samples=args.max_samples,
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
         elevation=args.elevation, voxel_surface=not args.voxel_centres, mirror=args.mirror_average,
-        retrieval_data=args.retrieval_data,
+        retrieval_data=args.retrieval_data, sketch_path=args.sketch_path,
     )
     table = markdown_table(result)
     print(table)

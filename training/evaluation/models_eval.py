@@ -12,8 +12,9 @@ views, each at the middle of its share: 4 of 24 azimuths are 45, 135, 225 and 31
 
 1. the stored line drawing (``sketch``, 255 = ink, ``/ 255`` is the generator's input, the raster
    ``sketchmesh gallery`` and ``bench tradeoff`` feed the engine; ``--augment-strength A`` redraws
-   it hand-drawn from the stored polylines instead) goes through ``SketchEngine.predict`` (cache
-   off, no refinement);
+   it hand-drawn from the stored polylines instead; ``--sketch-path image`` puts it through the
+   engine's image-file preprocessing first, ``canvas`` draws its strokes as the app's canvas does)
+   goes through ``SketchEngine.predict`` (cache off, no refinement);
 2. the predicted mesh, in the view's frame, is rotated back to the world with the view's camera
    (:func:`training.evaluation.metrics.world_vertices`);
 3. its solid voxelisation at ``--voxel-resolution`` (32^3) is compared with the shape's own
@@ -53,6 +54,8 @@ import numpy as np
 
 from engine.errors import EmptySketchError, SketchmeshError
 from engine.mesh import Mesh
+from engine.preprocess import preprocess_raster, rasterize_strokes
+from engine.strokes import Stroke
 
 BUNDLED = "bundled"
 """``--models bundled``: the app's bundled models (unless a folder of that name exists here)."""
@@ -62,6 +65,12 @@ RETRIEVAL_SIZE = 64
 RETRIEVAL_BLUR_SIGMA = 1.0
 """Gaussian blur (pixels at 64x64) of the retrieval features: a stroke a pixel away still matches."""
 RETRIEVAL_CHUNK = 512
+SKETCH_PATHS = {
+    "stored": "the stored drawings",
+    "image": "through the engine's image-file preprocessing",
+    "canvas": "the strokes drawn as the app's canvas draws them",
+}
+"""``sketchmesh eval --sketch-path`` values (for a RUN and for --models) and how a table's caption says them."""
 TEMPLATE = "template"
 RETRIEVAL = "retrieval"
 
@@ -271,15 +280,29 @@ def _paired(rows: list[dict], column: str, first: str) -> dict | None:
     return {"mean": float(np.mean(diffs)), "se": _se(diffs), "meshes": len(diffs)}
 
 
-def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float, seed: int) -> np.ndarray:
-    if augment_strength <= 0:
+def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float, seed: int,
+                 sketch_path: str = "stored") -> np.ndarray:
+    """One view's drawing as ``sketch_path`` feeds it to the engine (:data:`SKETCH_PATHS`).
+
+    Raises:
+        EmptySketchError: the engine's preprocessing finds no ink (image) or no strokes (canvas).
+    """
+    if sketch_path == "stored" and augment_strength <= 0:
         return dataset.shape_array(cat, sid, "sketch")[view].astype(np.float32) / 255.0
-    from training.data.augment import render_sketch
+    from training.data.augment import augment_strokes, render_sketch
     from training.data.render import view_polylines
 
     arrays = {k: dataset.shape_array(cat, sid, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
-    return np.asarray(render_sketch(view_polylines(arrays, view), dataset.size, augment_strength,
-                                    [int(seed), zlib.crc32(f"{cat}/{sid}".encode()), int(view)]), np.float32)
+    rng_seed = [int(seed), zlib.crc32(f"{cat}/{sid}".encode()), int(view)]
+    if sketch_path == "canvas":
+        polylines = augment_strokes(view_polylines(arrays, view), augment_strength, rng_seed, dataset.size).polylines
+        return rasterize_strokes([Stroke(np.asarray(p, np.float64)) for p in polylines])
+    if augment_strength > 0:
+        sketch = np.asarray(render_sketch(view_polylines(arrays, view), dataset.size, augment_strength, rng_seed),
+                            np.float32)
+    else:
+        sketch = dataset.shape_array(cat, sid, "sketch")[view].astype(np.float32) / 255.0
+    return preprocess_raster(sketch) if sketch_path == "image" else sketch
 
 
 def evaluate_models(
@@ -293,6 +316,7 @@ def evaluate_models(
     max_samples: int = 0,
     augment_strength: float = 0.0,
     seed: int = 0,
+    sketch_path: str = "stored",
     voxel_resolution: int = 32,
     voxel_surface: bool = True,
     threads: int | None = None,
@@ -312,6 +336,9 @@ def evaluate_models(
         max_samples: at most this many shapes, evenly spaced (0: all).
         augment_strength: redraw the line drawings hand-drawn at this strength (0: the stored ones).
         seed: seed of that augmentation.
+        sketch_path: "stored", "image" or "canvas": how a drawing reaches the engine
+            (:data:`SKETCH_PATHS`); a view the engine's preprocessing refuses
+            (no ink above its threshold) is skipped like an empty one.
         voxel_resolution: voxel grid side.
         voxel_surface: count the cells the surface passes through (default); False: centres only.
         threads: ONNX Runtime threads per engine (None: the engine's default).
@@ -339,6 +366,8 @@ def evaluate_models(
         raise ModelsEvalError(f"voxel resolution must be in [1, 512], got {voxel_resolution}")
     if split not in ("train", "val", "test", "all"):
         raise ModelsEvalError(f"--split must be train, val, test or all, got {split!r}")
+    if sketch_path not in SKETCH_PATHS:
+        raise ModelsEvalError(f"--sketch-path must be one of {', '.join(SKETCH_PATHS)}, got {sketch_path!r}")
     check_data(data_dir, split)
     dataset = ShapeViewDataset(Path(data_dir), split, extra_views=0, augment_strength=0.0)
     shapes = dataset.shapes()
@@ -386,7 +415,11 @@ def evaluate_models(
             if not candidates:
                 continue
         for v in [candidates[k] for k in pick_views(len(candidates), views)]:
-            sketch = _view_sketch(dataset, cat, sid, v, augment_strength, seed)
+            try:
+                sketch = _view_sketch(dataset, cat, sid, v, augment_strength, seed, sketch_path)
+            except EmptySketchError:
+                skipped_views += 1
+                continue
             iou: dict = {}
             rec: dict = {"view": int(v), "azimuth": float(azimuths[v]), "elevation": float(elevations[v]), "iou": iou}
             try:
@@ -448,6 +481,7 @@ def evaluate_models(
         "template": {"level": int(info["template_level"]), "radius": float(info["template_radius"]),
                      "vertices": int(template.num_vertices)},
         "augment_strength": float(augment_strength),
+        "sketch_path": sketch_path,
         "voxel_resolution": int(voxel_resolution),
         "voxel_surface": bool(voxel_surface),
         "seconds": time.perf_counter() - t_start,
@@ -462,6 +496,8 @@ def markdown_report(result: dict) -> str:
     """The per-mesh table with the means row, and a line on each floor."""
     cols = result["columns"]
     aug = f", hand-drawn at strength {result['augment_strength']:g}" if result["augment_strength"] > 0 else ""
+    if result.get("sketch_path", "stored") != "stored":
+        aug += f", {SKETCH_PATHS[result['sketch_path']]}"
     views = result["views_per_mesh"] or "all"
     cells = "" if result.get("voxel_surface", True) else ", voxels by cell centres only"
     lines = [f"Voxel IoU ({result['voxel_resolution']}^3) on the {result['split']} split of {result['data']}: "
@@ -514,7 +550,8 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     views = DEFAULT_VIEWS if args.views is None else args.views
     result = evaluate_models(folders, args.data, args.split, views=views, retrieval=not args.no_retrieval,
                              retrieval_data=args.retrieval_data, max_samples=args.max_samples,
-                             augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution,
+                             augment_strength=args.augment_strength,
+                             sketch_path=args.sketch_path, voxel_resolution=args.voxel_resolution,
                              voxel_surface=not args.voxel_centres, threads=threads, progress=not args.quiet, engines=engines, elevation=args.elevation)
     table = markdown_report(result)
     print(table)
