@@ -234,6 +234,7 @@ DATA70=${DATA70:-data/fresh600v4}
 DATA72=${DATA72:-data/check1200v4}
 RUNS28=${RUNS28:-runs/v28}
 OUT28=${OUT28:-out/v28}
+OUT29=${OUT29:-out/v29}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1869,6 +1870,17 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ "${1#eval-full-}" != "$1" ] && { c=${1/full-/}; size=full; n=0; }
       eval_case "$c"; EVAL_EXTRA+=(--mirror-average)
       SAMPLES2=$n eval_against test "$OUT27/$size/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
+    eval-canvas-v29|eval-canvas-strong-v29|eval-canvas-side-v29|eval-image-v29|eval-image-strong-v29|eval-image-side-v29)
+      # the bundled twenty-first (import-v27's run, the fifth generator), plain and +mirror, on every test sketch of the
+      # case as one of the app's two input paths feeds it to the generator (`eval --sketch-path`): canvas, the drawing's
+      # strokes (hand-drawn with strong augmentation) framed on their points at the standard width in full ink; image,
+      # the stored raster through the engine's image-file preprocessing. eval-full-*-v27 is the stored rasters' figure.
+      # 15-17 min for clean and strong, 4 for side; into OUT29/full/{canvas,image}/eval_*
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      local path=${1#eval-}; path=${path%%-*}
+      local c=${1/$path-/}
+      eval_case "$c"; EVAL_EXTRA+=(--mirror-average --sketch-path "$path")
+      SAMPLES2=0 eval_against test "$OUT29/full/$path/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
     data-v27-check)  # DATA72 [data/check1200v4]: a second validation set no run has trained on or been chosen by: shapes
       # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
