@@ -64,15 +64,15 @@ class _Redrawn:
         return getattr(self.ds, name)
 
 
-def test_engine_sketches_are_the_engines_preprocessing_of_each_sketch():
-    from training.evaluation.evaluate import engine_sketches
+def test_the_image_path_is_the_engines_preprocessing_of_each_sketch():
+    from training.evaluation.evaluate import app_path_sketches
 
     rng = np.random.default_rng(0)
     sketches = np.zeros((3, 1, 256, 256), np.float32)
     sketches[0, 0, 40:200, 60:63] = 0.7  # one grey vertical stroke, off centre
     sketches[1, 0, 100:103, 20:240] = 1.0
     sketches[2, 0] = (rng.random((256, 256)) > 0.995) * 0.9  # scattered dots
-    got = engine_sketches(torch.from_numpy(sketches))
+    got = app_path_sketches("image", torch.from_numpy(sketches))
     assert got.shape == (3, 1, 256, 256) and got.dtype == torch.float32
     for i in range(3):
         np.testing.assert_array_equal(got[i, 0].numpy(), preprocess_raster(sketches[i, 0]))
@@ -83,13 +83,13 @@ def test_engine_sketches_are_the_engines_preprocessing_of_each_sketch():
 
 
 def test_a_sketch_the_engine_refuses_is_a_clear_error_naming_it():
-    from training.evaluation.evaluate import EvaluationError, engine_sketches
+    from training.evaluation.evaluate import EvaluationError, app_path_sketches
 
     sketches = torch.zeros((2, 1, 256, 256))
     sketches[0, 0, 10:20, 10:200] = 1.0
     sketches[1, 0, 50:60, 50:60] = 0.3  # ink below the engine's threshold only: a blank drawing to the engine
     with pytest.raises(EvaluationError, match=r"chair.*7.*refuses"):
-        engine_sketches(sketches, [("table", "a", 1), ("chair", "b", 7)])
+        app_path_sketches("image", sketches, names=[("table", "a", 1), ("chair", "b", 7)])
 
 
 def test_eval_image_path_scores_the_preprocessed_sketches(world):
@@ -140,14 +140,14 @@ def test_view_strokes_are_the_polylines_the_items_sketch_is_drawn_from(world, st
         assert _ink_far_from(np.asarray(ds[0]["sketch"], np.float32)[0], wrong, 2.8) > 0.05
 
 
-def test_canvas_sketches_draw_the_strokes_as_the_engine_does_and_a_clean_drawing_stays_itself(world):
+def test_the_canvas_path_draws_the_strokes_as_the_engine_does_and_a_clean_drawing_stays_itself(world):
     from engine.preprocess import rasterize_strokes
     from engine.strokes import Stroke
-    from training.evaluation.evaluate import EvaluationError, canvas_sketches
+    from training.evaluation.evaluate import EvaluationError, app_path_sketches
 
     ds = _drawn(world)
     drawings = [ds.view_strokes(i) for i in (0, 1)]
-    got = canvas_sketches(drawings)
+    got = app_path_sketches("canvas", torch.zeros((2, 1, 256, 256)), drawings)
     assert got.shape == (2, 1, 256, 256)
     for k in (0, 1):
         np.testing.assert_array_equal(got[k, 0].numpy(), rasterize_strokes([Stroke(p) for p in drawings[k]]))
@@ -155,7 +155,7 @@ def test_canvas_sketches_draw_the_strokes_as_the_engine_does_and_a_clean_drawing
         drawn = got[k, 0].numpy() > 0.5
         assert (stored & drawn).sum() / (stored | drawn).sum() > 0.8  # the same drawing, the same framing
     with pytest.raises(EvaluationError, match="refuses"):
-        canvas_sketches([[]], [("chair", "b", 7)])
+        app_path_sketches("canvas", torch.zeros((1, 1, 256, 256)), [[]], [("chair", "b", 7)])
 
 
 def test_eval_canvas_path_scores_the_strokes_drawn_by_the_engine(world):

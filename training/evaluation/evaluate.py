@@ -37,6 +37,10 @@ Baselines in the same table:
 * ``canvas``: the drawing's strokes (the hand-drawn ones with ``--augment-strength``) drawn by
   :func:`engine.preprocess.rasterize_strokes`, framed on their points at the standard width in full
   ink, as the app's canvas feeds the generator a drawing made with the pen.
+
+Outputs: a markdown table (printed and written to ``OUT/eval_<split>.md``), JSON (``--json PATH``
+and ``OUT/eval_<split>.json``) and a bar chart ``OUT/eval_<split>.png``. Every method's row carries its
+cost (milliseconds of network inference per sample on this machine).
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ from engine.errors import SketchmeshError
 from engine.fileio import atomic_write_bytes
 from engine.icosphere import mirror_average
 from engine.mesh import Mesh
+from engine.preprocess import preprocess_raster
 from training.data.mirror import mirror_normal_image
 from training.evaluation.metrics import ELEVATION_TOL, category_mean_se, world_vertices
 from training.evaluation.models_eval import SKETCH_PATHS
@@ -195,51 +200,35 @@ def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarr
     return out.silhouette.numpy() > 0.5
 
 
-def engine_sketches(sketches: torch.Tensor, names: list | None = None) -> torch.Tensor:
-    """(N, 1, 256, 256) stored sketches -> the same as the engine's image-file path makes them.
+def app_path_sketches(sketch_path: str, sketches: torch.Tensor, drawings: list | None = None,
+                      names: list | None = None) -> torch.Tensor:
+    """A batch of test sketches as one of the app's input paths feeds them to the generator (module doc).
 
-    Each goes through :func:`engine.preprocess.preprocess_raster` (what ``SketchEngine.predict`` does
-    to an image file after decoding it), so a scored sketch is one the app could have fed its generator.
+    Args:
+        sketch_path: "image" (each stored raster through :func:`engine.preprocess.preprocess_raster`)
+            or "canvas" (each drawing's polylines through :func:`engine.preprocess.rasterize_strokes`).
+        sketches: (N, 1, 256, 256) the stored rasters.
+        drawings: "canvas": N lists of (K, 2) pixel polylines (:meth:`ShapeViewDataset.view_strokes`).
+        names: N (category, shape id, view) naming the sketches in errors.
 
     Raises:
-        EvaluationError: a sketch the engine would refuse (no ink above the threshold), named by
-            ``names[i]`` (category, shape id, view) when given.
+        EvaluationError: a sketch the engine refuses (no ink above its threshold, no strokes), named.
     """
     from engine.contract import SKETCH_SIZE
     from engine.errors import EmptySketchError, SketchInputError
-    from engine.preprocess import preprocess_raster
+    from training.evaluation.models_eval import canvas_raster
 
+    if sketch_path not in ("image", "canvas"):
+        raise ValueError(f"app_path_sketches takes the image or canvas path, got {sketch_path!r}")
     a = sketches.detach().cpu().float().numpy()
     if a.ndim != 4 or a.shape[1] != 1:
-        raise ValueError(f"engine_sketches takes (N, 1, H, W) sketches, got {tuple(a.shape)}")
+        raise ValueError(f"app_path_sketches takes (N, 1, H, W) sketches, got {tuple(a.shape)}")
+    if sketch_path == "canvas" and (drawings is None or len(drawings) != len(a)):
+        raise ValueError("the canvas path needs one drawing (its polylines) per sketch")
     out = np.empty((a.shape[0], 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
-    for i, sketch in enumerate(a[:, 0]):
+    for i in range(len(a)):
         try:
-            out[i, 0] = preprocess_raster(sketch)
-        except (EmptySketchError, SketchInputError) as e:
-            who = f" {names[i]}" if names is not None else ""
-            raise EvaluationError(f"sketch{who}: the engine refuses it ({e})") from e
-    return torch.from_numpy(out)
-
-
-def canvas_sketches(drawings: list, names: list | None = None) -> torch.Tensor:
-    """Drawings (each a list of (N, 2) pixel polylines) -> (N, 1, 256, 256) as the app's canvas would feed them.
-
-    Each drawing's polylines become :class:`engine.strokes.Stroke` s and go through
-    :func:`engine.preprocess.rasterize_strokes` (framed on their points, the standard width, full ink).
-
-    Raises:
-        EvaluationError: a drawing the engine refuses (no strokes), named by ``names[i]`` when given.
-    """
-    from engine.contract import SKETCH_SIZE
-    from engine.errors import EmptySketchError, SketchInputError
-    from engine.preprocess import rasterize_strokes
-    from engine.strokes import Stroke
-
-    out = np.empty((len(drawings), 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
-    for i, polylines in enumerate(drawings):
-        try:
-            out[i, 0] = rasterize_strokes([Stroke(np.asarray(p, np.float64)) for p in polylines])
+            out[i, 0] = preprocess_raster(a[i, 0]) if sketch_path == "image" else canvas_raster(drawings[i])
         except (EmptySketchError, SketchInputError) as e:
             who = f" {names[i]}" if names is not None else ""
             raise EvaluationError(f"sketch{who}: the engine refuses it ({e})") from e
@@ -410,9 +399,10 @@ def evaluate(
         batch = {k: torch.as_tensor(np.stack([np.asarray(it[k]) for it in items]))
                  for k in ("sketch", "normals64", "silhouette64", "camera")}
         if sketch_path != "stored":
-            names = [(it["category"], it["shape_id"], int(it["view"])) for it in items]
-            batch["sketch"] = (engine_sketches(batch["sketch"], names) if sketch_path == "image" else
-                               canvas_sketches([test_set.view_strokes(int(i)) for i in indices[s:s + EVAL_BATCH]], names))
+            drawings = ([test_set.view_strokes(int(i)) for i in indices[s:s + EVAL_BATCH]]
+                        if sketch_path == "canvas" else None)
+            batch["sketch"] = app_path_sketches(sketch_path, batch["sketch"], drawings,
+                                                [(it["category"], it["shape_id"], int(it["view"])) for it in items])
         cams = batch["camera"].numpy().astype(np.float64)
         for method in methods:
             verts, retrieved = method.predict(batch)

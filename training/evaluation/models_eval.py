@@ -280,6 +280,13 @@ def _paired(rows: list[dict], column: str, first: str) -> dict | None:
     return {"mean": float(np.mean(diffs)), "se": _se(diffs), "meshes": len(diffs)}
 
 
+def canvas_raster(polylines: list) -> np.ndarray:
+    """A drawing's (K, 2) pixel polylines as the app's canvas feeds them to the generator: each one an
+    :class:`engine.strokes.Stroke` through :func:`engine.preprocess.rasterize_strokes` (framed on the points,
+    the standard width, full ink). Raises EmptySketchError when there are none."""
+    return rasterize_strokes([Stroke(np.asarray(p, np.float64)) for p in polylines])
+
+
 def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float, seed: int,
                  sketch_path: str = "stored") -> np.ndarray:
     """One view's drawing as ``sketch_path`` feeds it to the engine (:data:`SKETCH_PATHS`).
@@ -295,8 +302,8 @@ def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float
     arrays = {k: dataset.shape_array(cat, sid, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
     rng_seed = [int(seed), zlib.crc32(f"{cat}/{sid}".encode()), int(view)]
     if sketch_path == "canvas":
-        polylines = augment_strokes(view_polylines(arrays, view), augment_strength, rng_seed, dataset.size).polylines
-        return rasterize_strokes([Stroke(np.asarray(p, np.float64)) for p in polylines])
+        return canvas_raster(augment_strokes(view_polylines(arrays, view), augment_strength, rng_seed,
+                                             dataset.size).polylines)
     if augment_strength > 0:
         sketch = np.asarray(render_sketch(view_polylines(arrays, view), dataset.size, augment_strength, rng_seed),
                             np.float32)
