@@ -145,6 +145,9 @@
 #   generated-*-v28-strong draw DATA70's generated sets from strongly augmented drawings (1.0, the strong case's; so far
 #   0.5), predictor-v28-strong trains the twenty-first on them as predictor-v27-low did on the 0.5 sets, and
 #   check-*-v28-strong sets the two passes against the twenty-first on DATA72.
+# The app's two input paths (2026-11-28, a fourth session; no GPU lent): eval-{canvas,image}[-strong|-side]-v29 score the
+#   bundled pair on every test sketch as the app's canvas (strokes framed at the standard width in full ink) and its
+#   image-file path feed the generator (`eval --sketch-path`), where eval-full-*-v27 fed the stored rasters (OUT29 [out/v29]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
