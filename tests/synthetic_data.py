@@ -110,6 +110,20 @@ def write_synthetic_dataset(
     return root
 
 
+def train_tiny_joint_run(data_dir, out_dir, iters: int = 1, **overrides) -> Path:
+    """A joint run of tiny networks (generator width 8, a level-2 template) trained ``iters`` iterations on the CPU
+    into ``out_dir``: a run with both networks for tests that export, import or evaluate one."""
+    from training.loop.config import TrainConfig
+    from training.loop.trainer import Trainer
+
+    cfg = TrainConfig(**{**dict(mode="joint", data_dir=str(data_dir), out_dir=str(out_dir), iters=iters, batch=2,
+                                base_channels=8, predictor_channels=8, predictor_hidden=32, predictor_latent=16,
+                                template_level=2, sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0,
+                                ckpt_every=0, plot_every=0, device="cpu", extra_views=1), **overrides})
+    Trainer(cfg, progress=False).run()
+    return Path(out_dir)
+
+
 def _ddp_main(data_dir: str, out_dir: str) -> None:
     """Train a tiny mesh run under torchrun and dump this rank's parameter checksum and first batch."""
     import hashlib

@@ -9,22 +9,16 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from synthetic_data import write_synthetic_dataset  # noqa: E402
+from synthetic_data import train_tiny_joint_run, write_synthetic_dataset  # noqa: E402
 
 from engine.preprocess import preprocess_raster  # noqa: E402
-from training.loop.config import TrainConfig  # noqa: E402
-from training.loop.trainer import Trainer  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def world(tmp_path_factory) -> dict:
     root = tmp_path_factory.mktemp("enginepre")
     data = write_synthetic_dataset(root / "data", splits=("train", "test"), views=3)
-    cfg = TrainConfig(mode="joint", data_dir=str(data), out_dir=str(root / "run"), iters=2, batch=2, base_channels=8,
-                      predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
-                      sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
-                      device="cpu", extra_views=1)
-    Trainer(cfg, progress=False).run()
+    train_tiny_joint_run(data, root / "run", iters=2)
     import trimesh
 
     from sketchmesh.cli import main

@@ -26,7 +26,7 @@ from training.loop.config import TrainConfig  # noqa: E402
 from training.loop.trainer import Trainer, load_run  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synthetic_data import write_synthetic_dataset  # noqa: E402
+from synthetic_data import train_tiny_joint_run, write_synthetic_dataset  # noqa: E402
 
 torch.set_num_threads(2)
 
@@ -36,11 +36,7 @@ def trained(tmp_path_factory) -> tuple[Path, Path]:
     """(data folder, joint run) trained a few iterations so batch-norm statistics and weights are not the initial ones."""
     root = tmp_path_factory.mktemp("import")
     data = write_synthetic_dataset(root / "data", splits=("train", "test"), views=2)
-    cfg = TrainConfig(mode="joint", data_dir=str(data), out_dir=str(root / "run"), iters=3, batch=2, base_channels=8,
-                      predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
-                      sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
-                      device="cpu", extra_views=1, lr_mesh=1e-2, lr_warmup=0)
-    Trainer(cfg, progress=False).run()
+    train_tiny_joint_run(data, root / "run", iters=3, lr_mesh=1e-2, lr_warmup=0)
     return data, root / "run"
 
 

@@ -17,11 +17,11 @@ from engine.errors import ModelError  # noqa: E402
 from engine.icosphere import icosphere  # noqa: E402
 from training.export.to_onnx import PARITY_TOLERANCE, export_models, export_run  # noqa: E402
 from training.loop.config import TrainConfig  # noqa: E402
-from training.loop.trainer import Trainer, load_run  # noqa: E402
+from training.loop.trainer import load_run  # noqa: E402
 from training.model.networks import downsample_normals  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synthetic_data import write_synthetic_dataset  # noqa: E402
+from synthetic_data import train_tiny_joint_run, write_synthetic_dataset  # noqa: E402
 
 torch.set_num_threads(2)
 
@@ -30,11 +30,7 @@ torch.set_num_threads(2)
 def run_dir(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("export")
     data = write_synthetic_dataset(root / "data", splits=("train", "test"), views=2)
-    cfg = TrainConfig(mode="joint", data_dir=str(data), out_dir=str(root / "run"), iters=1, batch=2, base_channels=8,
-                      predictor_channels=8, predictor_hidden=32, predictor_latent=16, template_level=2,
-                      sobel_samples=64, augment_strength=0.0, log_every=1, val_every=0, ckpt_every=0, plot_every=0,
-                      device="cpu", extra_views=1)
-    Trainer(cfg, progress=False).run()
+    train_tiny_joint_run(data, root / "run", iters=1)
     return root / "run"
 
 
