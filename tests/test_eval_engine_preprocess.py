@@ -181,3 +181,46 @@ def test_a_bad_sketch_path_or_one_with_true_normals_is_refused(world):
     with pytest.raises(EvaluationError, match="ground-truth normals"):
         evaluate(world["run"], world["data"], "test", sketch_path="image", gt_normals=True, retrieval=False,
                  progress=False)
+
+
+def test_scale_about_box_centre_by_hand():
+    from training.evaluation.evaluate import scale_about_box_centre
+
+    v = np.array([[[0.0, 0.0, 0.0], [2.0, 1.0, 4.0], [1.0, 0.5, 1.0]]])  # box centre (1, 0.5, 2)
+    got = scale_about_box_centre(v, 0.5)
+    np.testing.assert_allclose(got[0], [[0.5, 0.25, 1.0], [1.5, 0.75, 3.0], [1.0, 0.5, 1.5]])
+    np.testing.assert_array_equal(scale_about_box_centre(v, 1.0), v)
+
+
+def test_mesh_scale_scores_the_scaled_meshes(world, tmp_path, capsys):
+    """--mesh-scale S is the same as scoring a run whose predictions were scaled by hand; the CLI refuses it for
+    --models and a bad value on one line."""
+    from sketchmesh.cli import main
+    from training.evaluation import evaluate as ev
+
+    ds = _drawn(world)
+    kw = dict(retrieval=False, max_samples=4, progress=False, test_set=ds)
+    scaled = ev.evaluate(world["run"], world["data"], "test", mesh_scale=0.7, **kw)
+    plain = ev.evaluate(world["run"], world["data"], "test", **kw)
+    original = ev._RunMethod.predict
+
+    def by_hand(self, batch):
+        verts, retrieved = original(self, batch)
+        c = (verts.min(axis=1, keepdims=True) + verts.max(axis=1, keepdims=True)) / 2
+        return c + 0.7 * (verts - c), retrieved
+
+    ev._RunMethod.predict = by_hand
+    try:
+        expected = ev.evaluate(world["run"], world["data"], "test", **kw)
+    finally:
+        ev._RunMethod.predict = original
+    assert scaled["mesh_scale"] == 0.7
+    for metric in ("voxel_iou", "chamfer_l1", "silhouette_iou"):
+        assert scaled["mean"][metric] == pytest.approx(expected["mean"][metric], abs=1e-9)
+    assert scaled["mean"]["silhouette_iou"] != pytest.approx(plain["mean"]["silhouette_iou"], abs=1e-6)
+    with pytest.raises(SystemExit) as exc:  # refused by the parser
+        main(["eval", str(world["run"]), "--data", str(world["data"]), "--mesh-scale", "0", "--quiet"])
+    assert exc.value.code != 0
+    assert main(["eval", "--models", "bundled", "--data", str(world["data"]), "--mesh-scale", "0.9", "--quiet",
+                 "--out", str(tmp_path / "o")]) != 0
+    assert "--mesh-scale applies to a RUN" in capsys.readouterr().err

@@ -1884,6 +1884,12 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local c=${1/$path-/}
       eval_case "$c"; EVAL_EXTRA+=(--mirror-average --sketch-path "$path")
       SAMPLES2=0 eval_against test "$OUT29/full/$path/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
+    check-scale-v29|check-scale-strong-v29)  # a calibration probe: the twenty-first's meshes scaled by 0.98 about their
+      # bounding-box centres before scoring (`eval --mesh-scale`), on check-*-v27's DATA72 sketches (520 a case), plain
+      # and +mirror, into OUT29/check_scale_*: check-v27's twenty-first columns are the same sketches unscaled
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      eval_case "${1/check-scale-/eval-}"; EVAL_EXTRA+=(--mirror-average --mesh-scale "${MESH_SCALE:-0.98}")
+      check72 "$OUT29/check_scale_${EVAL_NAME#eval_}" ;;
     data-v27-check)  # DATA72 [data/check1200v4]: a second validation set no run has trained on or been chosen by: shapes
       # 1200-1249 of each category (`data --first-shape 1200`), their train split, 4 of the 48 grid views each; about 2 min
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \

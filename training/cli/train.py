@@ -218,7 +218,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 
 _RUN_ONLY_EVAL_FLAGS = (("gt_normals", "--gt-normals"), ("generator_run", "--generator-run"),
-                        ("baseline_run", "--baseline-run"))
+                        ("baseline_run", "--baseline-run"), ("mesh_scale", "--mesh-scale"))
 _MODELS_ONLY_EVAL_FLAGS = (("views", "--views"),)
 
 
@@ -381,6 +381,9 @@ def register(commands, bench) -> None:
                    "image: through the engine's image-file preprocessing (binarise, reframe, thin, redraw at the "
                    "standard width in full ink), as the app treats a scanned drawing; canvas: its strokes drawn as the "
                    "app's canvas draws a pen drawing (framed on the points, standard width, full ink)")
+    p.add_argument("--mesh-scale", type=float_in(1e-3, 10.0), default=None, metavar="S",
+                   help="RUN: scale every predicted mesh about its bounding-box centre by S before scoring it "
+                   "(a calibration probe; default 1)")
     p.add_argument("--gt-normals", action="store_true",
                    help="feed the predictor the ground-truth normal images instead of the generator's")
     p.add_argument("--generator-run", metavar="RUN", help="take the generator from this run (default: RUN)")

@@ -38,6 +38,9 @@ Baselines in the same table:
   :func:`engine.preprocess.rasterize_strokes`, framed on their points at the standard width in full
   ink, as the app's canvas feeds the generator a drawing made with the pen.
 
+``--mesh-scale S`` (a calibration probe, 1 by default) scales every run's predicted mesh about the centre of its
+bounding box by S before it is scored (:func:`scale_about_box_centre`): does a systematic size error cost voxel IoU?
+
 Outputs: a markdown table (printed and written to ``OUT/eval_<split>.md``), JSON (``--json PATH``
 and ``OUT/eval_<split>.json``) and a bar chart ``OUT/eval_<split>.png``. Every method's row carries its
 cost (milliseconds of network inference per sample on this machine).
@@ -200,6 +203,13 @@ def _silhouettes(view_vertices: np.ndarray, faces: np.ndarray, cameras: np.ndarr
     return out.silhouette.numpy() > 0.5
 
 
+def scale_about_box_centre(vertices: np.ndarray, scale: float) -> np.ndarray:
+    """(..., V, 3) vertices scaled by ``scale`` about the centre of each mesh's axis-aligned bounding box."""
+    v = np.asarray(vertices, np.float64)
+    centre = (v.min(axis=-2, keepdims=True) + v.max(axis=-2, keepdims=True)) / 2
+    return centre + float(scale) * (v - centre)
+
+
 def app_path_sketches(sketch_path: str, sketches: torch.Tensor, drawings: list | None = None,
                       names: list | None = None) -> torch.Tensor:
     """A batch of test sketches as one of the app's input paths feeds them to the generator (module doc).
@@ -295,6 +305,7 @@ def evaluate(
     mirror: bool = False,
     retrieval_data: str | Path | None = None,
     sketch_path: str = "stored",
+    mesh_scale: float = 1.0,
 ) -> dict:
     """Evaluate a run (and baselines) on a split; see the module docstring.
 
@@ -319,6 +330,8 @@ def evaluate(
             ``data_dir``): a run trained on a larger dataset is set against retrieval from the shapes it saw.
         sketch_path: "stored", "image" or "canvas": how a test sketch reaches the generator
             (:data:`training.evaluation.models_eval.SKETCH_PATHS`, module doc).
+        mesh_scale: scale every run's prediction about its bounding-box centre by this before scoring it
+            (a calibration probe; retrieval's meshes are left as they are).
 
     Returns:
         ``{"mean": {...}, "per_category": {...}}`` of the run, plus ``"methods"`` (every method's
@@ -335,6 +348,8 @@ def evaluate(
         raise EvaluationError("a sketch path applies to sketches; with ground-truth normals no sketch is used")
     if voxel_resolution < 4:
         raise EvaluationError(f"voxel resolution must be >= 4, got {voxel_resolution}")
+    if not (np.isfinite(mesh_scale) and 0.0 < mesh_scale <= 10.0):
+        raise EvaluationError(f"mesh scale must be in (0, 10], got {mesh_scale}")
     gen_fallback = None
     if generator_run:
         _, gmodels, _ = load_run(generator_run)
@@ -418,6 +433,8 @@ def evaluate(
                 sil = [_silhouettes(v[None], f, c[None], 64)[0] for (_, f, v), c in zip(verts_world, cams)]
                 meshes = [Mesh(w, f) for w, f, _ in verts_world]
             else:
+                if mesh_scale != 1.0:
+                    verts = scale_about_box_centre(verts, mesh_scale)
                 sil = list(_silhouettes(verts, faces, cams, 64))
                 meshes = [Mesh(world_vertices(v, c), faces) for v, c in zip(verts, cams)]
             for it, mesh, sl in zip(items, meshes, sil):
@@ -454,6 +471,7 @@ def evaluate(
         "voxel_surface": bool(voxel_surface),
         "retrieval_data": str(retrieval_data or data_dir) if retrieval else None,
         "sketch_path": sketch_path,
+        "mesh_scale": float(mesh_scale),
         "seconds": time.perf_counter() - t_start,
     }
 
@@ -471,6 +489,8 @@ def markdown_table(result: dict) -> str:
         what.append(f"sketches augmented at strength {result['augment_strength']:g}")
     if result.get("sketch_path", "stored") != "stored":
         what.append(SKETCH_PATHS[result["sketch_path"]])
+    if result.get("mesh_scale", 1.0) != 1.0:
+        what.append(f"the runs' meshes scaled by {result['mesh_scale']:g} about their box centres")
     if not result.get("voxel_surface", True):
         what.append("voxels by cell centres only")
     if result.get("retrieval_data") and "retrieval" in names:
@@ -581,6 +601,7 @@ def evaluate_cli(args: argparse.Namespace) -> int:
         augment_strength=args.augment_strength, voxel_resolution=args.voxel_resolution, progress=not args.quiet,
         elevation=args.elevation, voxel_surface=not args.voxel_centres, mirror=args.mirror_average,
         retrieval_data=args.retrieval_data, sketch_path=args.sketch_path,
+        mesh_scale=1.0 if args.mesh_scale is None else args.mesh_scale,
     )
     table = markdown_table(result)
     print(table)
