@@ -148,6 +148,7 @@
 # The app's two input paths (2026-11-28, a fourth session; no GPU lent): eval-{canvas,image}[-strong|-side]-v29 score the
 #   bundled pair on every test sketch as the app's canvas (strokes framed at the standard width in full ink) and its
 #   image-file path feed the generator (`eval --sketch-path`), where eval-full-*-v27 fed the stored rasters (OUT29 [out/v29]).
+#   check-scale-*-v29 and eval-scale-v29 probe a calibration: the meshes scaled by 0.98 before scoring (`eval --mesh-scale`).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1884,6 +1885,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local c=${1/$path-/}
       eval_case "$c"; EVAL_EXTRA+=(--mirror-average --sketch-path "$path")
       SAMPLES2=0 eval_against test "$OUT29/full/$path/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" ;;
+    eval-scale-v29)  # the same probe on every clean test sketch (15 min): eval-full-v27 with the meshes scaled by 0.98
+      # (MESH_SCALE), chosen on DATA72 (check-scale-v29), into OUT29/full/scale/eval_clean
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      EVAL_EXTRA=(--mirror-average --mesh-scale "${MESH_SCALE:-0.98}")
+      SAMPLES2=0 eval_against test "$OUT29/full/scale/eval_clean" "$RUNS27/twentyfirst/predictor" ;;
     check-scale-v29|check-scale-strong-v29)  # a calibration probe: the twenty-first's meshes scaled by 0.98 about their
       # bounding-box centres before scoring (`eval --mesh-scale`), on check-*-v27's DATA72 sketches (520 a case), plain
       # and +mirror, into OUT29/check_scale_*: check-v27's twenty-first columns are the same sketches unscaled
