@@ -17,7 +17,7 @@ from engine.mesh import Mesh  # noqa: E402
 from engine.pipeline import SketchEngine  # noqa: E402
 from sketchmesh.cli import main  # noqa: E402
 from training.evaluation.metrics import voxel_iou  # noqa: E402
-from training.evaluation.models_eval import pick_views  # noqa: E402
+from training.evaluation.models_eval import SKETCH_PATHS, pick_views  # noqa: E402
 
 MESHES = ("ball", "brick", "rod")
 BRICK = (1.0, 0.5, 0.3)
@@ -283,6 +283,7 @@ def test_sketch_path_feeds_the_engine_the_drawing_as_that_app_path_makes_it(worl
     res = json.loads(out.read_text())
     assert res["sketch_path"] == path
     assert "image-file" in (tmp_path / "eval_models_all.md").read_text() or path == "canvas"
+    assert SKETCH_PATHS[path] in (tmp_path / "eval_models_all.md").read_text().splitlines()[0]
     _, view, sketch, rot, gt = _brick_view(world, res, 1)
     if path == "image":
         fed = preprocess_raster(sketch)

@@ -901,6 +901,18 @@ class ShapeViewDataset(_DatasetBase):
                 out[sel] = g.rows(rows[sel])
         return out
 
+    def _sketch_seed(self, i: int) -> list[int]:
+        """The seed of item ``i``'s hand-drawn augmentation (``i`` normalised): its sketch and its strokes share it."""
+        return [self.seed, i]
+
+    def _clean_polylines(self, i: int) -> list[np.ndarray]:
+        """Item ``i``'s clean line drawing as polylines (``i`` normalised)."""
+        from training.data.render import view_polylines
+
+        si, v = self._items[i]
+        p = self._path(self._shapes[si])
+        return view_polylines({k: self._cache.get(p, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}, v)
+
     def view_strokes(self, i: int) -> list[np.ndarray]:
         """The polylines item ``i``'s sketch is drawn from: (N_k, 2) pixel coordinates (x = col, y = row).
 
@@ -908,18 +920,14 @@ class ShapeViewDataset(_DatasetBase):
         otherwise the clean ones; stroke widths and ink, which the app's canvas does not have, are left out.
         """
         from training.data.augment import augment_strokes
-        from training.data.render import view_polylines
 
         if not -len(self) <= i < len(self):
             raise IndexError(f"index {i} out of range for a dataset of {len(self)} views")
         i = int(i) % len(self)
-        si, v = self._items[i]
-        p = self._path(self._shapes[si])
-        arrays = {k: self._cache.get(p, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
-        clean = view_polylines(arrays, v)
+        clean = self._clean_polylines(i)
         if self.augment_strength <= 0:
             return clean
-        return augment_strokes(clean, self.augment_strength, [self.seed, i], self.size).polylines
+        return augment_strokes(clean, self.augment_strength, self._sketch_seed(i), self.size).polylines
 
     def item(self, i: int, fields: str = "all") -> dict:
         """Item ``i`` with ``fields`` ("all" or "mesh"; see the class docstring)."""
@@ -952,10 +960,8 @@ class ShapeViewDataset(_DatasetBase):
         get = self._cache.get
         if self.augment_strength > 0:
             from training.data.augment import render_sketch
-            from training.data.render import view_polylines
 
-            arrays = {k: get(p, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
-            sketch = render_sketch(view_polylines(arrays, v), self.size, self.augment_strength, [self.seed, i])
+            sketch = render_sketch(self._clean_polylines(i), self.size, self.augment_strength, self._sketch_seed(i))
         else:
             sketch = get(p, "sketch")[v].astype(np.float32) / 255.0
         n64, s64 = get(p, "normals64"), get(p, "silhouette64")

@@ -65,7 +65,7 @@ from engine.mesh import Mesh
 from engine.preprocess import preprocess_raster
 from training.data.mirror import mirror_normal_image
 from training.evaluation.metrics import ELEVATION_TOL, category_mean_se, world_vertices
-from training.evaluation.models_eval import SKETCH_PATHS
+from training.evaluation.models_eval import SKETCH_PATHS, canvas_raster
 from training.loop.config import TrainConfig
 from training.model.networks import downsample_normals, view_frame_cameras
 
@@ -226,7 +226,6 @@ def app_path_sketches(sketch_path: str, sketches: torch.Tensor, drawings: list |
     """
     from engine.contract import SKETCH_SIZE
     from engine.errors import EmptySketchError, SketchInputError
-    from training.evaluation.models_eval import canvas_raster
 
     if sketch_path not in ("image", "canvas"):
         raise ValueError(f"app_path_sketches takes the image or canvas path, got {sketch_path!r}")

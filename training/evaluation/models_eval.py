@@ -294,19 +294,17 @@ def _view_sketch(dataset, cat: str, sid: str, view: int, augment_strength: float
     Raises:
         EmptySketchError: the engine's preprocessing finds no ink (image) or no strokes (canvas).
     """
-    if sketch_path == "stored" and augment_strength <= 0:
-        return dataset.shape_array(cat, sid, "sketch")[view].astype(np.float32) / 255.0
     from training.data.augment import augment_strokes, render_sketch
     from training.data.render import view_polylines
 
-    arrays = {k: dataset.shape_array(cat, sid, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
     rng_seed = [int(seed), zlib.crc32(f"{cat}/{sid}".encode()), int(view)]
+    if sketch_path == "canvas" or augment_strength > 0:
+        arrays = {k: dataset.shape_array(cat, sid, k) for k in ("view_poly_offsets", "poly_offsets", "poly_points")}
+        polylines = view_polylines(arrays, view)
     if sketch_path == "canvas":
-        return canvas_raster(augment_strokes(view_polylines(arrays, view), augment_strength, rng_seed,
-                                             dataset.size).polylines)
+        return canvas_raster(augment_strokes(polylines, augment_strength, rng_seed, dataset.size).polylines)
     if augment_strength > 0:
-        sketch = np.asarray(render_sketch(view_polylines(arrays, view), dataset.size, augment_strength, rng_seed),
-                            np.float32)
+        sketch = np.asarray(render_sketch(polylines, dataset.size, augment_strength, rng_seed), np.float32)
     else:
         sketch = dataset.shape_array(cat, sid, "sketch")[view].astype(np.float32) / 255.0
     return preprocess_raster(sketch) if sketch_path == "image" else sketch
