@@ -149,6 +149,47 @@ def test_joint_with_a_frozen_predictor_moves_only_the_generator_and_by_the_mesh_
         TrainConfig(mode="mesh", freeze_predictor=True)
 
 
+def test_adversarial_weight_zero_leaves_the_discriminator_out_and_steps_on_the_l1_terms_alone(data_dir, tmp_path):
+    # lambda_adv = 0: the discriminator is never called nor trained, the generator's gradient is that of the two L1
+    # terms (Eq. 10 without the adversarial one) computed here by hand, and the log leaves its two terms blank
+    from training.loop.trainer import _step_seed
+    from training.model.networks import global_l1_loss, local_l1_loss, sample_edge_pixels
+
+    tr = Trainer(TrainConfig(mode="normals", data_dir=str(data_dir), out_dir=str(tmp_path / "noadv"), iters=2,
+                             lambda_adv=0.0, generator_dropout=False, **TINY), progress=False)
+    batch = _to_device(torch.utils.data.default_collate([tr.train_set[i] for i in range(2)]), tr.device)
+    G, D = tr.models["generator"], tr.models["discriminator"]
+    d_before = {k: v.clone() for k, v in D.state_dict().items()}
+    calls = []
+    hook = D.register_forward_hook(lambda *a: calls.append(1))
+    tr._train_modes()
+    G.zero_grad(set_to_none=True)
+    fake = G(batch["sketch"])
+    gen = torch.Generator().manual_seed(_step_seed(tr.cfg.seed, 0, 0) + 1)
+    idx = sample_edge_pixels(batch["normals"], tr.cfg.sobel_samples, tr.cfg.sobel_threshold, gen)
+    by_hand = torch.autograd.grad(tr.cfg.lambda_g * global_l1_loss(fake, batch["normals"])
+                                  + tr.cfg.lambda_l * local_l1_loss(fake, batch["normals"], idx), list(G.parameters()))
+    backward, terms, _ = tr._compute(batch, 0)
+    assert len(backward) == 1 and "d_loss" not in terms and "g_adv" not in terms
+    backward[0].backward()
+    for p, g in zip(G.parameters(), by_hand):
+        torch.testing.assert_close(p.grad, g, rtol=1e-5, atol=1e-7)
+    G.zero_grad(set_to_none=True)
+    tr.run()
+    hook.remove()
+    assert tr.iteration == 2 and not calls
+    assert all(torch.equal(v, d_before[k]) for k, v in D.state_dict().items())
+    rows = read_log(tmp_path / "noadv")
+    assert rows and all(r["d_loss"] == "" and r["g_adv"] == "" and np.isfinite(float(r["g_global"])) for r in rows)
+    # the default weight still runs and trains it
+    on = Trainer(TrainConfig(mode="normals", data_dir=str(data_dir), out_dir=str(tmp_path / "adv"), iters=1, **TINY),
+                 progress=False)
+    d0 = {k: v.clone() for k, v in on.models["discriminator"].state_dict().items()}
+    on.run()
+    assert any(not torch.equal(v, d0[k]) for k, v in on.models["discriminator"].state_dict().items())
+    assert np.isfinite(float(read_log(tmp_path / "adv")[0]["d_loss"]))
+
+
 def test_generator_dropout_off_trains_the_generator_as_it_runs_at_inference(data_dir, tmp_path):
     # pix2pix's dropout makes two training-mode passes over one sketch differ; without it a training-mode pass is
     # the inference pass (eval mode) exactly, while the rest of the generator stays in training mode

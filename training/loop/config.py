@@ -59,7 +59,8 @@ class TrainConfig:
         lambda_n, lambda_s, lambda_e, lambda_m: Eq. 6 weights (paper: 0.002, 0.9, 0.9, 0.01);
             ``lambda_n = 0`` trains the silhouette-only baseline.
         lambda_g, lambda_l: Eq. 10 weights of the global and local (Sobel-sampled) L1 terms.
-        lambda_adv: weight of the adversarial term of the generator (1 in Eq. 10).
+        lambda_adv: weight of the adversarial term of the generator (1 in Eq. 10); 0 leaves the
+            discriminator out of every step (neither run nor trained; ``d_loss`` and ``g_adv`` log blank).
         joint_mesh_weight: weight of the mesh loss on the generator in joint mode.
         freeze_predictor: joint mode only: hold the predictor fixed (eval mode, so its batch norms
             keep their running statistics and a small batch cannot disturb them; no optimiser) and

@@ -604,7 +604,7 @@ class Trainer:
         count = vals[-1].item()
         if count == 0:
             return {}
-        return {c: float(v) / count for c, v in zip(cols, vals[:-1].tolist())}
+        return {c: float(v) / count for c, v in zip(cols, vals[:-1].tolist()) if c in local}
 
     def _true_surface_points(self, batch: dict) -> torch.Tensor:
         """(B, SURFACE_POINTS, 3) points on each sample's true surface in its input view's frame
@@ -631,26 +631,31 @@ class Trainer:
         g_total = None
         fake = None
         if cfg.uses_generator:
-            G, D = self.wrapped["generator"], self.wrapped["discriminator"]
+            G = self.wrapped["generator"]
             sketch, real = batch["sketch"], batch["normals"]
             fake = G(sketch)
             out["fake"] = fake
-            logits = D(torch.cat([sketch, sketch]), torch.cat([real, fake.detach()]))
-            n = sketch.shape[0]
-            d_loss = 0.5 * (adversarial_loss(logits[:n], True) + adversarial_loss(logits[n:], False))
-            D_raw = _unwrap(D)
-            D_raw.requires_grad_(False)
-            try:
-                g_adv = adversarial_loss(D_raw(sketch, fake), True)
-            finally:
-                D_raw.requires_grad_(True)
             gen = torch.Generator().manual_seed(_step_seed(cfg.seed, self.info.rank, it) + 1)
             idx = sample_edge_pixels(real, cfg.sobel_samples, cfg.sobel_threshold, gen)
             g_global = global_l1_loss(fake, real)
             g_local = local_l1_loss(fake, real, idx)
-            g_total = cfg.lambda_adv * g_adv + cfg.lambda_g * g_global + cfg.lambda_l * g_local
-            backward.append(d_loss)
-            terms.update(d_loss=d_loss, g_adv=g_adv, g_global=g_global, g_local=g_local, g_total=g_total)
+            if cfg.lambda_adv > 0:  # weight 0: the discriminator is neither run nor trained (its terms log blank)
+                D = self.wrapped["discriminator"]
+                logits = D(torch.cat([sketch, sketch]), torch.cat([real, fake.detach()]))
+                n = sketch.shape[0]
+                d_loss = 0.5 * (adversarial_loss(logits[:n], True) + adversarial_loss(logits[n:], False))
+                D_raw = _unwrap(D)
+                D_raw.requires_grad_(False)
+                try:
+                    g_adv = adversarial_loss(D_raw(sketch, fake), True)
+                finally:
+                    D_raw.requires_grad_(True)
+                g_total = cfg.lambda_adv * g_adv + cfg.lambda_g * g_global + cfg.lambda_l * g_local
+                backward.append(d_loss)
+                terms.update(d_loss=d_loss, g_adv=g_adv)
+            else:
+                g_total = cfg.lambda_g * g_global + cfg.lambda_l * g_local
+            terms.update(g_global=g_global, g_local=g_local, g_total=g_total)
         if cfg.uses_predictor:
             P = self.wrapped["predictor"]
             if cfg.mode == "joint":
