@@ -239,6 +239,8 @@ DATA72=${DATA72:-data/check1200v4}
 RUNS28=${RUNS28:-runs/v28}
 OUT28=${OUT28:-out/v28}
 OUT29=${OUT29:-out/v29}
+RUNS30=${RUNS30:-runs/v30}
+OUT30=${OUT30:-out/v30}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -331,8 +333,8 @@ check72() {  # the twenty-first pair (import-v27's run with the fifth generator)
 
 joint28() {  # the end-to-end fine-tune of the twenty-first pair: the fifth generator (import-v8) trained through the
   # twenty-first predictor held fixed (import-v27) on DATA70, into run $1 for $2 iterations at batch 4 on two threads,
-  # generator rate $3 (RMSProp), mesh-loss weight $4, then more `train joint` flags (the adversarial term off: the
-  # imported generator comes without its discriminator); resumes
+  # generator rate $3 (RMSProp), mesh-loss weight $4, then more `train joint` flags (the adversarial term off, so no
+  # discriminator runs: the imported generator comes without one); resumes
   v27_start "joint"
   local run=$1 iters=$2 lr=$3 weight=$4; shift 4
   sketchmesh train joint --data "$DATA70" --init-normals "$RUNS8/fifth/generator" --init-mesh "$RUNS27/twentyfirst/predictor" \
@@ -1890,6 +1892,38 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
       EVAL_EXTRA=(--mirror-average --mesh-scale "${MESH_SCALE:-0.98}")
       SAMPLES2=0 eval_against test "$OUT29/full/scale/eval_clean" "$RUNS27/twentyfirst/predictor" ;;
+    soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
+      # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
+      # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds
+      # control-v27's silhouette-only pass (v27_low_sil); seconds each
+      local r
+      for r in v27_fresh v27_low v27_b512 v27_low_sil; do
+        [ -f "$RUNS27/$r/config.json" ] || { echo "soup-v30 averages $RUNS27/$r: run predictor-v27, predictor-v27-low, predictor-v27-b512 and control-v27 first" >&2; exit 1; }
+      done
+      [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
+      local four=("$RUNS27/twentyfirst/predictor" "$RUNS27/v27_low" "$RUNS27/v27_b512" "$RUNS27/v27_fresh")
+      rm -rf "$RUNS30/soup4" "$RUNS30/soup3" "$RUNS30/soup5"
+      sketchmesh average "${four[@]}" --out "$RUNS30/soup4" --data "$DATA70" --threads 2
+      sketchmesh average "${four[@]:1}" --out "$RUNS30/soup3" --data "$DATA70" --threads 2
+      sketchmesh average "${four[@]}" "$RUNS27/v27_low_sil" --out "$RUNS30/soup5" --data "$DATA70" --threads 2 ;;
+    check-soup-v30|check-soup-strong-v30|check-soup-side-v30)  # the soups (soup-v30) against the twenty-first on DATA72
+      # (check-*-v27's 520 sketches a case), plain and +mirror, into OUT30/check_*: soup4 everywhere, soup3 and soup5
+      # on clean sketches only (3 min a case, 6 with the two)
+      [ -f "$RUNS30/soup4/config.json" ] || step soup-v30
+      eval_case "${1/check-soup-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      if [ "$1" = check-soup-v30 ]; then
+        check72 "$OUT30/check_${EVAL_NAME#eval_}" "$RUNS30/soup4" "$RUNS30/soup3" "$RUNS30/soup5"
+      else
+        check72 "$OUT30/check_${EVAL_NAME#eval_}" "$RUNS30/soup4"
+      fi ;;
+    eval-soup-v30|eval-soup-strong-v30|eval-soup-side-v30)  # the twenty-first against soup4 on every test sketch, plain
+      # and +mirror: clean and side views from the stored rasters (as eval-full-*-v27; the canvas path gives the same
+      # clean figure), strong augmentation through the canvas (as eval-canvas-strong-v29); 30 min for clean and
+      # strong, 8 for side; into OUT30/full/eval_*
+      [ -f "$RUNS30/soup4/config.json" ] || step soup-v30
+      eval_case "${1/eval-soup-/eval-}"; EVAL_EXTRA+=(--mirror-average)
+      [ "$1" = eval-soup-strong-v30 ] && EVAL_EXTRA+=(--sketch-path canvas)
+      SAMPLES2=0 eval_against test "$OUT30/full/$EVAL_NAME" "$RUNS27/twentyfirst/predictor" "$RUNS30/soup4" ;;
     check-scale-v29|check-scale-strong-v29)  # a calibration probe: the twenty-first's meshes scaled by 0.98 about their
       # bounding-box centres before scoring (`eval --mesh-scale`), on check-*-v27's DATA72 sketches (520 a case), plain
       # and +mirror, into OUT29/check_scale_*: check-v27's twenty-first columns are the same sketches unscaled
