@@ -149,6 +149,9 @@
 #   bundled pair on every test sketch as the app's canvas (strokes framed at the standard width in full ink) and its
 #   image-file path feed the generator (`eval --sketch-path`), where eval-full-*-v27 fed the stored rasters (OUT29 [out/v29]).
 #   check-scale-*-v29 and eval-scale-v29 probe a calibration: the meshes scaled by 0.98 before scoring (`eval --mesh-scale`).
+# A weight soup (2026-11-28, a fifth session; no GPU lent): soup-v30 averages the twenty-first predictor and its three
+#   CPU passes on DATA70 into RUNS30 [runs/v30], check-soup-*-v30 sets the soups against the twenty-first on DATA72 and
+#   eval-soup-*-v30 on every test sketch (OUT30 [out/v30]). Level mirror averaged on the test split: nothing shipped.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
