@@ -125,6 +125,23 @@ def test_augmented_items_are_deterministic_in_seed_and_index(built):
         assert torch.equal(clean[2]["sketch"][0], torch.from_numpy(z["sketch"][clean[2]["view"]] / np.float32(255.0)))
 
 
+@pytest.mark.parametrize("strength", [0.0, 0.7])
+def test_sketch_fields_are_the_full_item_without_its_256px_images(built, strength):
+    # fields="sketch" (what an evaluation reads): every key of the full item but the 256 px normal image and
+    # silhouette, equal to it (the augmented sketch too); a dataset built with it serves that from __getitem__
+    root, _, _ = built
+    data = ds.ShapeViewDataset(root, "all", extra_views=1, augment_strength=strength, seed=3)
+    lean = ds.ShapeViewDataset(root, "all", extra_views=1, augment_strength=strength, seed=3, fields="sketch")
+    for i in (0, 5):
+        full, got = data[i], data.item(i, "sketch")
+        assert set(got) == set(full) - {"normals", "silhouette"}
+        for k, v in got.items():
+            assert torch.equal(v, full[k]) if isinstance(v, torch.Tensor) else v == full[k], k
+        assert set(lean[i]) == set(got) and torch.equal(lean[i]["sketch"], full["sketch"])
+    with pytest.raises(ds.DatasetError, match="fields must be one of"):
+        data.item(0, "normals")
+
+
 def test_splits_categories_shapes_and_meshes(built):
     root, jobs, _ = built
     expected = {(j.category, j.shape_id, j.split) for j in jobs}

@@ -173,6 +173,34 @@ def test_eval_canvas_path_scores_the_strokes_drawn_by_the_engine(world):
     assert flagged["mean"]["silhouette_iou"] == pytest.approx(by_hand["mean"]["silhouette_iou"], abs=1e-9)
 
 
+def test_eval_reads_no_raster_the_canvas_redraws_and_no_256px_image(world, monkeypatch):
+    """The evaluator asks the dataset only for what it reads: through the canvas no augmented raster is drawn (the
+    strokes are drawn instead), and no path reads the 256 px normal images or silhouettes; the scores stay those of
+    the full items (a caller's own test set, served as it serves them)."""
+    import training.data.augment as augment
+    from training.data.dataset import ShapeFileCache
+    from training.evaluation.evaluate import evaluate
+
+    ds = _drawn(world, 1.0)
+    kw = dict(retrieval=False, max_samples=4, progress=False)
+    as_served = evaluate(world["run"], world["data"], "test", sketch_path="canvas", test_set=_Redrawn(ds, lambda s: s),
+                         **kw)
+    real_get, read = ShapeFileCache.get, []
+    monkeypatch.setattr(ShapeFileCache, "get", lambda self, p, k: read.append(k) or real_get(self, p, k))
+
+    def no_raster(*a, **k):
+        raise AssertionError("the canvas path drew the augmented raster it replaces")
+
+    with monkeypatch.context() as m:
+        m.setattr(augment, "render_sketch", no_raster)
+        lean = evaluate(world["run"], world["data"], "test", sketch_path="canvas", test_set=ds, **kw)
+    for metric in ("voxel_iou", "chamfer_l1", "silhouette_iou"):
+        assert lean["mean"][metric] == pytest.approx(as_served["mean"][metric], abs=1e-9)
+    evaluate(world["run"], world["data"], "test", sketch_path="image", test_set=ds, **kw)
+    assert {"normals64", "silhouette64", "cameras"} <= set(read)
+    assert not {"normals256", "silhouette256"} & set(read)
+
+
 def test_a_bad_sketch_path_or_one_with_true_normals_is_refused(world):
     from training.evaluation.evaluate import EvaluationError, evaluate
 

@@ -185,7 +185,7 @@ def test_bad_datasets_give_one_line_errors(data, tmp_path):
     assert "has no shapes" in message(lambda: mc.open_mesh_cache(empty))
     assert "extra_views 3 is more than the 2 other views" in message(
         lambda: ShapeViewDataset(data, "train", extra_views=3, fields="mesh"))
-    assert "fields must be one of" in message(lambda: ShapeViewDataset(data, fields="sketch"))
+    assert "fields must be one of" in message(lambda: ShapeViewDataset(data, fields="normals"))
     victim = data / manifest["shapes"][1]["file"]
     victim.unlink()
     assert f"shape file {manifest['shapes'][1]['file']} is missing" in message(

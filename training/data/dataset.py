@@ -657,9 +657,11 @@ class ShapeViewDataset(_DatasetBase):
             same other views (deterministic in (seed, i), independent of the epoch).
         categories: restrict to these categories (default all in the dataset).
         shape_ids: restrict to these shape ids (default all); an id not in the split is an error.
-        fields: ``"all"`` (every key below) or ``"mesh"`` (only what a mesh-mode step reads:
+        fields: ``"all"`` (every key below), ``"mesh"`` (only what a mesh-mode step reads:
             ``normals64``, ``silhouette64``, ``camera``, their ``other_*`` and the names; no
-            sketch is loaded or augmented, ``augment_strength`` is not used).
+            sketch is loaded or augmented, ``augment_strength`` is not used), or ``"sketch"``
+            (``"mesh"``'s keys and the ``sketch``, from the shape files: the 256 px normal image
+            and silhouette are not read; what an evaluation reads).
         mesh_cache: where ``fields="mesh"`` reads its arrays from: ``"auto"`` / ``"disk"`` /
             ``"memory"``, the per-dataset cache of :func:`training.data.mesh_cache.open_mesh_cache`
             (decompressed once, bit-identical to the shape files), or ``"none"`` (the shape files).
@@ -690,7 +692,7 @@ class ShapeViewDataset(_DatasetBase):
             than the other views a shape of the split has.
     """
 
-    FIELDS = ("all", "mesh")
+    FIELDS = ("all", "mesh", "sketch")
     MESH_CACHES = ("auto", "disk", "memory", "none")
 
     def __init__(self, root, split: str = "train", *, extra_views: int = 1, augment_strength: float = 0.5,
@@ -930,7 +932,7 @@ class ShapeViewDataset(_DatasetBase):
         return augment_strokes(clean, self.augment_strength, self._sketch_seed(i), self.size).polylines
 
     def item(self, i: int, fields: str = "all") -> dict:
-        """Item ``i`` with ``fields`` ("all" or "mesh"; see the class docstring)."""
+        """Item ``i`` with ``fields`` ("all", "mesh" or "sketch"; see the class docstring)."""
         torch = _torch()
         if not -len(self) <= i < len(self):
             raise IndexError(f"index {i} out of range for a dataset of {len(self)} views")
@@ -966,12 +968,9 @@ class ShapeViewDataset(_DatasetBase):
             sketch = get(p, "sketch")[v].astype(np.float32) / 255.0
         n64, s64 = get(p, "normals64"), get(p, "silhouette64")
         cams = get(p, "cameras")
-        return {
-            "sketch": torch.from_numpy(np.ascontiguousarray(sketch, np.float32)[None]),
-            "normals": torch.from_numpy(get(p, "normals256")[v].astype(np.float32).transpose(2, 0, 1) / 255.0),
-            "silhouette": torch.from_numpy(get(p, "silhouette256")[v].astype(np.float32)[None]),
-            **_mesh_fields(torch, n64, s64, cams, v, others),
-            "category": rec["category"],
-            "shape_id": rec["shape_id"],
-            "view": int(v),
-        }
+        out = {"sketch": torch.from_numpy(np.ascontiguousarray(sketch, np.float32)[None])}
+        if fields == "all":
+            out["normals"] = torch.from_numpy(get(p, "normals256")[v].astype(np.float32).transpose(2, 0, 1) / 255.0)
+            out["silhouette"] = torch.from_numpy(get(p, "silhouette256")[v].astype(np.float32)[None])
+        return {**out, **_mesh_fields(torch, n64, s64, cams, v, others), "category": rec["category"],
+                "shape_id": rec["shape_id"], "view": int(v)}

@@ -210,14 +210,14 @@ def scale_about_box_centre(vertices: np.ndarray, scale: float) -> np.ndarray:
     return centre + float(scale) * (v - centre)
 
 
-def app_path_sketches(sketch_path: str, sketches: torch.Tensor, drawings: list | None = None,
+def app_path_sketches(sketch_path: str, sketches: torch.Tensor | None, drawings: list | None = None,
                       names: list | None = None) -> torch.Tensor:
     """A batch of test sketches as one of the app's input paths feeds them to the generator (module doc).
 
     Args:
         sketch_path: "image" (each stored raster through :func:`engine.preprocess.preprocess_raster`)
             or "canvas" (each drawing's polylines through :func:`engine.preprocess.rasterize_strokes`).
-        sketches: (N, 1, 256, 256) the stored rasters.
+        sketches: "image": (N, 1, 256, 256) the stored rasters ("canvas" does not read them; may be None).
         drawings: "canvas": N lists of (K, 2) pixel polylines (:meth:`ShapeViewDataset.view_strokes`).
         names: N (category, shape id, view) naming the sketches in errors.
 
@@ -229,13 +229,18 @@ def app_path_sketches(sketch_path: str, sketches: torch.Tensor, drawings: list |
 
     if sketch_path not in ("image", "canvas"):
         raise ValueError(f"app_path_sketches takes the image or canvas path, got {sketch_path!r}")
-    a = sketches.detach().cpu().float().numpy()
-    if a.ndim != 4 or a.shape[1] != 1:
-        raise ValueError(f"app_path_sketches takes (N, 1, H, W) sketches, got {tuple(a.shape)}")
-    if sketch_path == "canvas" and (drawings is None or len(drawings) != len(a)):
-        raise ValueError("the canvas path needs one drawing (its polylines) per sketch")
-    out = np.empty((a.shape[0], 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
-    for i in range(len(a)):
+    if sketch_path == "canvas":
+        if drawings is None:
+            raise ValueError("the canvas path needs one drawing (its polylines) per sketch")
+        a = None
+        n = len(drawings)
+    else:
+        a = sketches.detach().cpu().float().numpy()
+        if a.ndim != 4 or a.shape[1] != 1:
+            raise ValueError(f"app_path_sketches takes (N, 1, H, W) sketches, got {tuple(a.shape)}")
+        n = len(a)
+    out = np.empty((n, 1, SKETCH_SIZE, SKETCH_SIZE), np.float32)
+    for i in range(n):
         try:
             out[i, 0] = preprocess_raster(a[i, 0]) if sketch_path == "image" else canvas_raster(drawings[i])
         except (EmptySketchError, SketchInputError) as e:
@@ -407,15 +412,22 @@ def evaluate(
             gt_cache[(cat, sid)] = (mesh, solid_voxels(mesh, voxel_resolution, voxel_surface))
         return gt_cache[(cat, sid)]
 
+    from training.data.dataset import ShapeViewDataset
+
+    if isinstance(test_set, ShapeViewDataset):  # only what is read: no 256 px images, no raster the canvas redraws
+        fields = "mesh" if sketch_path == "canvas" else "sketch"
+        fetch = lambda i: test_set.item(i, fields)  # noqa: E731
+    else:  # a caller's own test set, as it serves its items
+        fetch = test_set.__getitem__
     bar = tqdm(total=len(indices), desc=f"eval {split}", unit="sample", disable=not progress)
     for s in range(0, len(indices), EVAL_BATCH):
-        items = [test_set[int(i)] for i in indices[s:s + EVAL_BATCH]]
+        items = [fetch(int(i)) for i in indices[s:s + EVAL_BATCH]]
         batch = {k: torch.as_tensor(np.stack([np.asarray(it[k]) for it in items]))
-                 for k in ("sketch", "normals64", "silhouette64", "camera")}
+                 for k in ("sketch", "normals64", "silhouette64", "camera") if k in items[0]}
         if sketch_path != "stored":
             drawings = ([test_set.view_strokes(int(i)) for i in indices[s:s + EVAL_BATCH]]
                         if sketch_path == "canvas" else None)
-            batch["sketch"] = app_path_sketches(sketch_path, batch["sketch"], drawings,
+            batch["sketch"] = app_path_sketches(sketch_path, batch.get("sketch"), drawings,
                                                 [(it["category"], it["shape_id"], int(it["view"])) for it in items])
         cams = batch["camera"].numpy().astype(np.float64)
         for method in methods:
