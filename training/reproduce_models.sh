@@ -152,6 +152,10 @@
 # A weight soup (2026-11-28, a fifth session; no GPU lent): soup-v30 averages the twenty-first predictor and its three
 #   CPU passes on DATA70 into RUNS30 [runs/v30], check-soup-*-v30 sets the soups against the twenty-first on DATA72 and
 #   eval-soup-*-v30 on every test sketch (OUT30 [out/v30]). Level mirror averaged on the test split: nothing shipped.
+# The direct fit's damping (2026-11-28, a sixth session; no GPU lent): fit-damping-v31 fits the first training shape of
+#   every category at the large-steps damping 2, 4, 8 and 16 (bench fit's default was 16); overfit-v31 is issue 14's
+#   overfit check (the predictor on 13 training shapes, one per category, 20 min) against fits at damping 4, and
+#   overfit-damping-v31 the same with the predictor's own basis damped at 4; overfit-table-v31 on one table alone (OUT31 [out/v31]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -244,6 +248,7 @@ OUT28=${OUT28:-out/v28}
 OUT29=${OUT29:-out/v29}
 RUNS30=${RUNS30:-runs/v30}
 OUT30=${OUT30:-out/v30}
+OUT31=${OUT31:-out/v31}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -562,7 +567,7 @@ step() {
       mkdir -p docs
       cp "$OUT/variants/variants.png" docs/variants.png ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
-      sketchmesh bench overfit "${CENTRES[@]}" --out "$RUNS/overfit" --minutes 20 --iters 4700 ;;
+      sketchmesh bench overfit "${CENTRES[@]}" --out "$RUNS/overfit" --minutes 20 --iters 4700 --fit-smoothing 16 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
       # (measured before the cosine decay became the default: these runs keep the constant rate)
       sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
@@ -729,7 +734,7 @@ EOF
     fit-v6)  # the direct-fit ceiling (one mesh optimised per shape, 8 views) on the first training shape of every
       # category, surface measure
       mkdir -p "$OUT6"
-      sketchmesh bench fit --procedural 1 --json "$OUT6/fit.json" ;;
+      sketchmesh bench fit --procedural 1 --smoothing 16 --json "$OUT6/fit.json" ;;
     predictor-v6)  # the encoder's depth at equal time: the fourth bundled predictor continued, alone on two threads,
       # with one residual block (two 3x3 convolutions) after each strided convolution, deepened so it starts as the
       # same function; against trials-v5's control (6,000 iterations in 19.4 min). The blocks slow a step from 5.2 to
@@ -1560,7 +1565,7 @@ EOF
     fit-legs-v19)  # fit-v6 from the legged template (engine.icosphere.template_mesh "legs": the sphere with four legs
       # pulled down from its lower half): does a template with legs lift the direct fit of chairs and tables?
       mkdir -p "$OUT19"
-      sketchmesh bench fit --procedural 1 --template legs --json "$OUT19/fit_legs.json" ;;
+      sketchmesh bench fit --procedural 1 --template legs --smoothing 16 --json "$OUT19/fit_legs.json" ;;
     gpucarry-v19)  # what the fourteenth candidate's GPU stage starts from: the thirteenth predictor as trained
       # (RUNS18/v18_more, fresh-v18) in gpucarry/v18_more;
       # then, on the lent GPU, the two calls in training/gpu_predictor.sh's header (carry .whl and gpucarry/v18_more;
@@ -1895,6 +1900,27 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$RUNS27/twentyfirst/predictor/config.json" ] || step import-v27
       EVAL_EXTRA=(--mirror-average --mesh-scale "${MESH_SCALE:-0.98}")
       SAMPLES2=0 eval_against test "$OUT29/full/scale/eval_clean" "$RUNS27/twentyfirst/predictor" ;;
+    fit-damping-v31)  # fit-v6 (the direct fit, 8 views, 1,000 iterations, first training shape of every category) at
+      # the large-steps damping FIT_DAMPINGS [2 4 8 16] of the offsets, into OUT31/fit_s{L}.json (6.5 min each)
+      mkdir -p "$OUT31"
+      for l in ${FIT_DAMPINGS:-2 4 8 16}; do
+        sketchmesh bench fit --procedural 1 --smoothing "$l" --json "$OUT31/fit_s$l.json"
+      done ;;
+    overfit-v31)  # issue 14's overfit check (overfit: the default predictor trained 20 min on 13 training shapes, one per
+      # category) against direct fits at damping 4 (fit-damping-v31's best mean), into OUT31/overfit (about 27 min)
+      sketchmesh bench overfit --out "$OUT31/overfit" --shapes 13 --minutes 20 --iters 4700 --fit-smoothing 4 ;;
+    overfit-damping-v31)  # overfit-v31 with the predictor's offset basis damped at 4 instead of 16 (from scratch; the same
+      # shapes and their cached fits), into OUT31/overfit_s4
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT31/overfit_s4" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 4700 \
+        --fit-smoothing 4 --set predictor_smoothing=4 ;;
+    overfit-table-v31)  # can the predictor learn one table? overfit-v31 on the first training table alone, rendered at the
+      # training data's elevations (0, 15, 30, 45; 96 views), 10 min, against its direct fit at damping 4, into
+      # OUT31/overfit_table
+      [ -f "$OUT31/table1/manifest.json" ] || sketchmesh data --source procedural --categories table --shapes-per-category 1 \
+        --elevations 0 15 30 45 --out "$OUT31/table1"
+      sketchmesh bench overfit --out "$OUT31/overfit_table" --data "$OUT31/table1" --shapes 1 --minutes 10 --iters 2350 \
+        --fit-smoothing 4 ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds

@@ -100,7 +100,7 @@ def register(commands, bench) -> None:
                    help="the template's shape: the icosphere (default), or the icosphere with four legs")
     q.add_argument("--lr", type=float_in(1e-6, 10.0), default=None)
     q.add_argument("--smoothing", type=float_in(0.0, 1e4), default=None,
-                   help="lambda of the large-steps offsets (I + lambda L)^-1 u (0: plain offsets)")
+                   help="lambda of the large-steps offsets (I + lambda L)^-1 u (0: plain offsets; default 4)")
     q.add_argument("--normal-region", choices=("image", "target"), default=None,
                    help="where the normal term counts (the whole image, or inside the target silhouette)")
     q.add_argument("--threads", type=positive_int, default=None)
@@ -131,7 +131,8 @@ def register(commands, bench) -> None:
     o.add_argument("--fit-iters", type=int_in(0, 100_000), default=None,
                    help="direct-fit iterations per shape (default: bench fit's; 0 skips the fit and the verdict)")
     o.add_argument("--fit-lr", type=float_in(1e-6, 10.0), default=None)
-    o.add_argument("--fit-smoothing", type=float_in(0.0, 1e4), default=None)
+    o.add_argument("--fit-smoothing", type=float_in(0.0, 1e4), default=None,
+                   help="the direct fits' large-steps lambda (default: bench fit's, 4)")
     o.add_argument("--fit-normal-region", choices=("image", "target"), default=None)
     o.add_argument("--threads", type=positive_int, default=2)
     o.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
