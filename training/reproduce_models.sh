@@ -1901,7 +1901,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       EVAL_EXTRA=(--mirror-average --mesh-scale "${MESH_SCALE:-0.98}")
       SAMPLES2=0 eval_against test "$OUT29/full/scale/eval_clean" "$RUNS27/twentyfirst/predictor" ;;
     fit-damping-v31)  # fit-v6 (the direct fit, 8 views, 1,000 iterations, first training shape of every category) at
-      # the large-steps damping FIT_DAMPINGS [2 4 8 16] of the offsets, into OUT31/fit_s{L}.json (6.5 min each)
+      # the large-steps damping FIT_DAMPINGS [2 4 8 16] of the offsets, into OUT31/fit_s{L}.json (6.5-9 min each)
       mkdir -p "$OUT31"
       for l in ${FIT_DAMPINGS:-2 4 8 16}; do
         sketchmesh bench fit --procedural 1 --smoothing "$l" --json "$OUT31/fit_s$l.json"
