@@ -155,7 +155,8 @@
 # The direct fit's damping (2026-11-28, a sixth session; no GPU lent): fit-damping-v31 fits the first training shape of
 #   every category at the large-steps damping 2, 4, 8 and 16 (bench fit's default was 16); overfit-v31 is issue 14's
 #   overfit check (the predictor on 13 training shapes, one per category, 20 min) against fits at damping 4, and
-#   overfit-damping-v31 the same with the predictor's own basis damped at 4; overfit-table-v31 on one table alone (OUT31 [out/v31]).
+#   overfit-damping-v31 the same with the predictor's own basis damped at 4; overfit-table-v31 on one table alone;
+#   overfit-views-v31 on twelve shapes at the training elevations (OUT31 [out/v31]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -1920,6 +1921,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT31/table1/manifest.json" ] || sketchmesh data --source procedural --categories table --shapes-per-category 1 \
         --elevations 0 15 30 45 --out "$OUT31/table1"
       sketchmesh bench overfit --out "$OUT31/overfit_table" --data "$OUT31/table1" --shapes 1 --minutes 10 --iters 2350 \
+        --fit-smoothing 4 ;;
+    overfit-views-v31)  # overfit-table-v31's views and minutes on one shape per category: the first shape of each,
+      # rendered at 0, 15, 30 and 45 degrees (the training split holds 12: display_00000 is a test shape), 10 min, against
+      # fits at damping 4: is the table lost among the other shapes or at overfit-v31's 30-degree views? Into OUT31/overfit_views
+      [ -f "$OUT31/first1/manifest.json" ] || sketchmesh data --source procedural --shapes-per-category 1 \
+        --elevations 0 15 30 45 --out "$OUT31/first1"
+      sketchmesh bench overfit --out "$OUT31/overfit_views" --data "$OUT31/first1" --shapes 13 --minutes 10 --iters 2350 \
         --fit-smoothing 4 ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
