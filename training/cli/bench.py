@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench variants``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench overfit-compare``, ``bench train``, ``bench variants``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -35,6 +35,7 @@ def _lazy(module: str, function: str):
 _cmd_bench_renderer = _lazy("training.bench.renderer", "main_bench_renderer")
 _cmd_bench_fit = _lazy("training.bench.fit", "main_fit")
 _cmd_bench_overfit = _lazy("training.bench.overfit", "main_overfit")
+_cmd_bench_overfit_compare = _lazy("training.bench.overfit_compare", "main_overfit_compare")
 _cmd_bench_train = _lazy("training.bench.train", "main_bench_train")
 _cmd_bench_variants = _lazy("training.bench.variants", "main_variants")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
@@ -48,6 +49,18 @@ def voxel_centres_flag(parser: argparse.ArgumentParser) -> None:
     surface's cells counted (``training.evaluation.metrics.solid_voxels``; thin parts vanish)."""
     parser.add_argument("--voxel-centres", action="store_true",
                         help="voxel IoU from cell centres only (the earlier tables' measure; thin parts vanish)")
+
+
+def _named_dir(text: str):
+    """``NAME=DIR`` (or a bare ``DIR``) for ``bench overfit-compare``."""
+    from pathlib import Path
+
+    name, sep, path = text.partition("=")
+    if not sep:
+        return Path(text).name or text, Path(text)
+    if not name or not path:
+        raise argparse.ArgumentTypeError(f"expected NAME=DIR, got {text!r}")
+    return name, Path(path)
 
 
 def _key_value(text: str) -> tuple[str, object]:
@@ -139,6 +152,18 @@ def register(commands, bench) -> None:
     o.add_argument("--quiet", action="store_true")
     voxel_centres_flag(o)
     o.set_defaults(func=_cmd_bench_overfit)
+
+    oc = one_line_errors(bench.add_parser(
+        "overfit-compare",
+        help="several bench overfit runs of the same shapes side by side: a table and one plot",
+        description="Reads each NAME=DIR's overfit.json and run/log.csv (folders written by sketchmesh bench "
+        "overfit --out DIR), prints training minutes, iterations, samples, the silhouette gap to the direct fit "
+        "and voxel IoU per variant, and writes compare.md, compare.json and compare.png (training curves against "
+        "wall-clock minutes, each shape's predicted voxel IoU beside its fit's) to --out.",
+    ))
+    oc.add_argument("runs", nargs="+", type=_named_dir, metavar="NAME=DIR", help="a bench overfit --out folder")
+    oc.add_argument("--out", required=True, metavar="DIR", help="folder for compare.md, compare.json, compare.png")
+    oc.set_defaults(func=_cmd_bench_overfit_compare)
 
     tr = one_line_errors(bench.add_parser(
         "train",
