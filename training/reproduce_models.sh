@@ -157,6 +157,10 @@
 #   overfit check (the predictor on 13 training shapes, one per category, 20 min) against fits at damping 4, and
 #   overfit-damping-v31 the same with the predictor's own basis damped at 4; overfit-table-v31 on one table alone;
 #   overfit-views-v31 on twelve shapes at the training elevations (OUT31 [out/v31]).
+# What the table lacks among other shapes (2026-11-28, a seventh session; no GPU lent): overfit-table310-v32 trains the
+#   table alone for the samples it gets among 13 shapes; overfit-b8-v32, overfit-lr-v32, overfit-long-v32 and
+#   overfit-seed-v32 are overfit-v31 at batch 8, at twice the rate, for twice the time and with a second seed;
+#   compare-overfit-v32 sets them side by side at equal wall-clock time (OUT32 [out/v32]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -250,6 +254,7 @@ OUT29=${OUT29:-out/v29}
 RUNS30=${RUNS30:-runs/v30}
 OUT30=${OUT30:-out/v30}
 OUT31=${OUT31:-out/v31}
+OUT32=${OUT32:-out/v32}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1929,6 +1934,37 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --elevations 0 15 30 45 --out "$OUT31/first1"
       sketchmesh bench overfit --out "$OUT31/overfit_views" --data "$OUT31/first1" --shapes 13 --minutes 10 --iters 2350 \
         --fit-smoothing 4 ;;
+    overfit-table310-v32)  # steps or sharing? overfit-table-v31's table alone for the 310 iterations it gets in overfit-v31
+      # (4,030 iterations / 13 shapes), no time limit, the cosine horizon at 310, no fit (its fit is overfit-table-v31's),
+      # into OUT32/overfit_table310 (about 2 min)
+      [ -f "$OUT31/table1/manifest.json" ] || step overfit-table-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_table310" --data "$OUT31/table1" --shapes 1 --minutes 0 --iters 310 \
+        --fit-iters 0 ;;
+    overfit-b8-v32)  # overfit-v31 at batch 8 (7 it/s on 2 cores against 3.3 at 32: twice the steps in the same 20 min),
+      # the same shapes and their cached fits at damping 4, the cosine horizon at what 20 min hold, into OUT32/overfit_b8
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_b8" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 8400 \
+        --batch 8 --fit-smoothing 4 ;;
+    overfit-lr-v32)  # overfit-v31 at twice its peak rate (lr_mesh 4e-3 after the same 100 warm-up steps, batch 32, 20 min),
+      # the same shapes and cached fits, into OUT32/overfit_lr4
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_lr4" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 4700 \
+        --fit-smoothing 4 --set lr_mesh=4e-3 ;;
+    overfit-long-v32)  # overfit-v31 for twice the time (40 min, the cosine horizon doubled to 9,400 so the rate falls as
+      # it did there): does the table stand on legs among the other shapes with more samples, or stay an arch? The same
+      # shapes and cached fits, into OUT32/overfit_long (about 42 min)
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_long" --data "$OUT31/overfit/data" --shapes 13 --minutes 40 \
+        --iters 9400 --fit-smoothing 4 ;;
+    overfit-seed-v32)  # overfit-v31 again with the predictor's seed 1 (its initial weights and the views it draws; the
+      # fits stay seed 0's, cached): the run-to-run spread the variants are read against, into OUT32/overfit_seed1
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 \
+        --iters 4700 --fit-smoothing 4 --set seed=1 ;;
+    compare-overfit-v32)  # the 13-shape overfit runs side by side (seconds): overfit-v31 (batch 32, rate 2e-3, 20 min) beside
+      # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes, into OUT32/compare (compare.md/.json/.png)
+      sketchmesh bench overfit-compare "default=$OUT31/overfit" "seed1=$OUT32/overfit_seed1" "damping4=$OUT31/overfit_s4" \
+        "batch8=$OUT32/overfit_b8" "lr4e-3=$OUT32/overfit_lr4" "40min=$OUT32/overfit_long" --out "$OUT32/compare" ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds
