@@ -45,8 +45,9 @@ def test_figures_from_the_files(tmp_path):
     assert va["pred_voxel"] == pytest.approx(0.15) and vb["pred_voxel"] == pytest.approx(0.45)
     assert va["fit_voxel"] == pytest.approx(0.525)
     table = markdown_table(rec)
-    assert "| a | 1.0 | 20 | 640 | 0.250 | 0.550 | 0.150 | 0.525 | table_00000 (0.400) |" in table
-    assert "| b | 2.2 | 40 | 320 | 0.050 |" in table
+    # a: 640 samples in 60 s, 320 per shape; b: 320 in 135 s (2.4 a second), 160 per shape
+    assert "| a | 1.0 | 20 | 640 | 11 | 320 | 0.250 | 0.550 | 0.150 | 0.525 | table_00000 (0.400) |" in table
+    assert "| b | 2.2 | 40 | 320 | 2 | 160 | 0.050 |" in table
 
 
 def test_cli_writes_table_json_and_plot(tmp_path, capsys):

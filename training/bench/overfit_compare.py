@@ -4,8 +4,8 @@ The overfit check's variants (batch, learning rate, basis damping, ...) are comp
 time, as the developers' guide asks: each ``NAME=DIR`` names a folder that ``sketchmesh bench overfit
 --out DIR`` wrote. The command reads ``DIR/overfit.json`` (the per-shape scores of the predictor and of
 the direct fits) and ``DIR/run/log.csv`` (the training curve), prints one row per variant (training
-minutes, iterations, samples seen, mean silhouette gap to the direct fit, mean predicted voxel IoU and
-the scores of the worst shape), and writes ``compare.md``, ``compare.json`` and ``compare.png`` to
+minutes, iterations, samples seen in all, a second and per shape, mean silhouette gap to the direct fit,
+mean predicted voxel IoU and the scores of the worst shape), and writes ``compare.md``, ``compare.json`` and ``compare.png`` to
 ``--out``: the training silhouette term against wall-clock minutes, every variant on one axes, beside
 each shape's predicted voxel IoU with the direct fit's as the ceiling.
 
@@ -109,11 +109,13 @@ def compare(named: list[tuple[str, Path]]) -> dict:
 
 
 def markdown_table(record: dict) -> str:
-    lines = ["| variant | train min | iterations | samples | sil gap to fit | pred sil | pred vox | fit vox | "
-             "worst shape (gap) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| variant | train min | iterations | samples | samples/s | per shape | sil gap to fit | pred sil | "
+             "pred vox | fit vox | worst shape (gap) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for v in record["variants"]:
-        lines.append(f"| {v['name']} | {v['minutes']:.1f} | {v['iterations']} | {v['samples']} | {v['gap']:.3f} | "
+        rate = v["samples"] / (60.0 * v["minutes"]) if v["minutes"] > 0 else float("nan")
+        lines.append(f"| {v['name']} | {v['minutes']:.1f} | {v['iterations']} | {v['samples']} | {rate:.0f} | "
+                     f"{v['samples'] / len(v['shapes']):.0f} | {v['gap']:.3f} | "
                      f"{v['pred_silhouette']:.3f} | {v['pred_voxel']:.3f} | {v['fit_voxel']:.3f} | "
                      f"{v['worst_shape']} ({v['worst_gap']:.3f}) |")
     return "\n".join(lines) + "\n"
