@@ -100,3 +100,44 @@ def test_bad_inputs_are_clear_errors(tmp_path, capsys):
     assert "is a file" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["bench", "overfit-compare", "=nothing", "--out", str(tmp_path / "o")])
+
+
+def _write_sheet(folder, shades, size=4):
+    """A bench overfit sheet: per shape a row of views (shade 10 * (shape + 1)) over the predicted row (its
+    shade from ``shades``), then a 2-pixel white gap."""
+    from PIL import Image
+
+    blocks = []
+    for i, shade in enumerate(shades):
+        views = np.full((size, 3 * size, 3), 10 * (i + 1), np.uint8)
+        pred = np.full((size, 3 * size, 3), shade, np.uint8)
+        blocks += [views, pred, np.full((2, 3 * size, 3), 255, np.uint8)]
+    Image.fromarray(np.concatenate(blocks, 0)).save(folder / "overfit.png")
+
+
+def test_shape_sheet_cuts_each_variants_row(tmp_path, capsys):
+    from PIL import Image
+
+    from sketchmesh.cli import main
+    from training.bench.overfit_compare import LABEL_WIDTH
+
+    args = dict(pred=[(0.6, 0.2), (0.5, 0.1)], fit=[(0.7, 0.35), (0.9, 0.7)], log_rows=[(10, 30.0, 0.5)])
+    a = _write_run(tmp_path / "a", **args)
+    b = _write_run(tmp_path / "b", **args)
+    _write_sheet(a, shades=(100, 110))
+    _write_sheet(b, shades=(200, 210))
+    out = tmp_path / "cmp"
+    assert main(["bench", "overfit-compare", str(a), str(b), "--out", str(out), "--shape", "table_00000"]) == 0
+    img = np.asarray(Image.open(out / "compare_table_00000.png").convert("RGB"))
+    # rows of 4-pixel tiles enlarged twice: the table's views (shade 20), then a's prediction (110), then b's (210)
+    assert img.shape == (3 * 8, LABEL_WIDTH + 3 * 8, 3)
+    tiles = img[:, LABEL_WIDTH:, 0]
+    assert (tiles[:8] == 20).all() and (tiles[8:16] == 110).all() and (tiles[16:] == 210).all()
+    assert (img[:, :LABEL_WIDTH] < 255).any()  # the rows are named
+    # a shape that was not compared is refused before anything is written; a sheet of another layout too
+    capsys.readouterr()
+    assert main(["bench", "overfit-compare", str(a), "--out", str(tmp_path / "c2"), "--shape", "sofa_00000"]) != 0
+    assert "not among the compared shapes" in capsys.readouterr().err and not (tmp_path / "c2").exists()
+    Image.fromarray(np.zeros((11, 12, 3), np.uint8)).save(b / "overfit.png")
+    assert main(["bench", "overfit-compare", str(a), str(b), "--out", str(out), "--shape", "chair_00000"]) != 0
+    assert "is not a bench overfit sheet" in capsys.readouterr().err

@@ -1962,9 +1962,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       sketchmesh bench overfit --out "$OUT32/overfit_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 \
         --iters 4700 --fit-smoothing 4 --set seed=1 ;;
     compare-overfit-v32)  # the 13-shape overfit runs side by side (seconds): overfit-v31 (batch 32, rate 2e-3, 20 min) beside
-      # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes, into OUT32/compare (compare.md/.json/.png)
+      # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes, into OUT32/compare (compare.md/.json/.png,
+      # and the table's and the chair's rows); the plot and the table's rows to docs/
       sketchmesh bench overfit-compare "default=$OUT31/overfit" "seed1=$OUT32/overfit_seed1" "damping4=$OUT31/overfit_s4" \
-        "batch8=$OUT32/overfit_b8" "lr4e-3=$OUT32/overfit_lr4" "40min=$OUT32/overfit_long" --out "$OUT32/compare" ;;
+        "batch8=$OUT32/overfit_b8" "lr4e-3=$OUT32/overfit_lr4" "40min=$OUT32/overfit_long" --out "$OUT32/compare" \
+        --shape table_00000 --shape chair_00000
+      cp "$OUT32/compare/compare.png" docs/overfit_compare.png
+      cp "$OUT32/compare/compare_table_00000.png" docs/overfit_table.png ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds

@@ -7,7 +7,9 @@ the direct fits) and ``DIR/run/log.csv`` (the training curve), prints one row pe
 minutes, iterations, samples seen in all, a second and per shape, mean silhouette gap to the direct fit,
 mean predicted voxel IoU and the scores of the worst shape), and writes ``compare.md``, ``compare.json`` and ``compare.png`` to
 ``--out``: the training silhouette term against wall-clock minutes, every variant on one axes, beside
-each shape's predicted voxel IoU with the direct fit's as the ceiling.
+each shape's predicted voxel IoU with the direct fit's as the ceiling. With ``--shape SHAPE_ID`` it
+also writes ``compare_SHAPE_ID.png``: that shape's views, then each variant's predicted mesh from the
+same views, cut from the runs' ``overfit.png`` sheets, to look at beside the numbers.
 
 Only runs of the same shapes compare: a different shape list is an error, and so is a missing or
 corrupt file. Training time comes from the run's log (``wall_s`` restarts when a run resumes; the
@@ -162,12 +164,62 @@ def plot_png(record: dict) -> bytes:
     return buf.getvalue()
 
 
+LABEL_WIDTH = 120
+"""Width in pixels of the strip that names each row of a shape's sheet."""
+
+
+def shape_sheet(record: dict, shape_id: str, scale: int = 2) -> np.ndarray:
+    """One shape from every variant's ``overfit.png``: the dataset's views, then each variant's predicted
+    mesh from the same views, each row named on the left (an RGB uint8 image).
+
+    ``bench overfit`` writes per shape a block of two rows of ``S``-pixel tiles (the views, then the
+    prediction) and a 2-pixel gap, so the block of shape ``i`` starts at ``i * (2 S + 2)``. Tiles are
+    enlarged ``scale`` times (nearest pixel)."""
+    from PIL import Image, ImageDraw
+
+    shapes = record["shapes"]
+    if shape_id not in shapes:
+        raise SketchmeshError(f"--shape {shape_id}: not among the compared shapes ({', '.join(shapes)})")
+    i = shapes.index(shape_id)
+    rows, names = [], []
+    for k, v in enumerate(record["variants"]):
+        path = Path(v["folder"]) / "overfit.png"
+        try:
+            with Image.open(path) as im:
+                sheet = np.asarray(im.convert("RGB"))
+        except (OSError, ValueError):
+            raise SketchmeshError(f"cannot read {path} (bench overfit writes it beside overfit.json)") from None
+        block, rest = divmod(sheet.shape[0], len(shapes))
+        size = (block - 2) // 2
+        if rest or size < 1 or block != 2 * size + 2:
+            raise SketchmeshError(f"{path} is not a bench overfit sheet of {len(shapes)} shapes "
+                                  f"({sheet.shape[0]} pixels high)")
+        top = i * block
+        if k == 0:
+            rows.append(sheet[top:top + size])
+            names.append("dataset views")
+        rows.append(sheet[top + size:top + 2 * size])
+        names.append(v["name"])
+    rows = [np.repeat(np.repeat(r, scale, 0), scale, 1) for r in rows]
+    width = max(r.shape[1] for r in rows)
+    height = rows[0].shape[0]
+    canvas = Image.new("RGB", (LABEL_WIDTH + width, height * len(rows)), "white")
+    draw = ImageDraw.Draw(canvas)
+    for r, (row, name) in enumerate(zip(rows, names)):
+        canvas.paste(Image.fromarray(np.ascontiguousarray(row)), (LABEL_WIDTH, r * height))
+        draw.text((4, r * height + height // 2 - 6), name[:18], fill="black")
+    return np.asarray(canvas)
+
+
 def main_overfit_compare(args) -> int:
     """``sketchmesh bench overfit-compare``; see the module docstring."""
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise SketchmeshError(f"--out {out} is a file, not a folder")
     record = compare(args.runs)
+    for shape_id in args.shape or []:
+        if shape_id not in record["shapes"]:
+            raise SketchmeshError(f"--shape {shape_id}: not among the compared shapes ({', '.join(record['shapes'])})")
     out.mkdir(parents=True, exist_ok=True)
     fits = {v["fit_iters"] for v in record["variants"]}
     table = markdown_table(record)
@@ -179,4 +231,14 @@ def main_overfit_compare(args) -> int:
     atomic_write_text(out / "compare.md", table)
     atomic_write_bytes(out / "compare.png", plot_png(record))
     print(f"wrote {out / 'compare.md'}, {out / 'compare.json'} and {out / 'compare.png'}")
+    for shape_id in dict.fromkeys(args.shape or []):
+        import io
+
+        from PIL import Image
+
+        buf = io.BytesIO()
+        Image.fromarray(shape_sheet(record, shape_id)).save(buf, format="PNG")
+        path = out / f"compare_{shape_id}.png"
+        atomic_write_bytes(path, buf.getvalue())
+        print(f"wrote {path} (the dataset's views of {shape_id}, then each variant's predicted mesh)")
     return 0

@@ -163,6 +163,8 @@ def register(commands, bench) -> None:
     ))
     oc.add_argument("runs", nargs="+", type=_named_dir, metavar="NAME=DIR", help="a bench overfit --out folder")
     oc.add_argument("--out", required=True, metavar="DIR", help="folder for compare.md, compare.json, compare.png")
+    oc.add_argument("--shape", action="append", metavar="SHAPE_ID",
+                    help="also write compare_SHAPE_ID.png: the shape's views, then each variant's predicted mesh (repeat)")
     oc.set_defaults(func=_cmd_bench_overfit_compare)
 
     tr = one_line_errors(bench.add_parser(
