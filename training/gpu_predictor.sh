@@ -7,6 +7,10 @@
 # 256x256 sketches (86.9 s on the H200 machine's 16 cores). The generator's images cannot be made
 # there in time, so the runs read true normal images (the `ceiling-v2` recipe of the fourth pair);
 # back here the predictor is fine-tuned on the generated images (reproduce_models.sh predictor-v10).
+# What a call buys (model card, "What the table lacks among other shapes"): the overfit check stands the table on
+# legs among 13 shapes only after about 17,000 samples of it (overfit-long-v32), and the twenty-first's GPU stage (two
+# calls) gave each category about 42,000 spread over 600 shapes (the paper: 1.28 M a category), so the legged
+# categories need many calls resumed one after another; look at the legs (gallery) after each, not only the mean.
 #
 #   bash training/gpu_predictor.sh INIT_RUN       on the GPU machine: INIT_RUN holds the predictor to
 #                                                 continue (a slim copy travels in gpucarry/, which

@@ -159,7 +159,8 @@
 #   overfit-views-v31 on twelve shapes at the training elevations (OUT31 [out/v31]).
 # What the table lacks among other shapes (2026-11-28, a seventh session; no GPU lent): overfit-table310-v32 trains the
 #   table alone for the samples it gets among 13 shapes; overfit-b8-v32, overfit-lr-v32, overfit-long-v32 and
-#   overfit-seed-v32 are overfit-v31 at batch 8, at twice the rate, for twice the time and with a second seed;
+#   overfit-seed-v32 are overfit-v31 at batch 8, at twice the rate, for twice the time and with a second seed,
+#   overfit-long-seed-v32 the 40 minutes with the second seed;
 #   compare-overfit-v32 sets them side by side at equal wall-clock time (OUT32 [out/v32]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
@@ -1956,16 +1957,22 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
       sketchmesh bench overfit --out "$OUT32/overfit_long" --data "$OUT31/overfit/data" --shapes 13 --minutes 40 \
         --iters 9400 --fit-smoothing 4 ;;
+    overfit-long-seed-v32)  # overfit-long-v32 with the predictor's seed 1 (as overfit-seed-v32): do the legs at 40 min
+      # stand in another run too? Into OUT32/overfit_long_seed1 (about 42 min)
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT32/overfit_long_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 40 \
+        --iters 9400 --fit-smoothing 4 --set seed=1 ;;
     overfit-seed-v32)  # overfit-v31 again with the predictor's seed 1 (its initial weights and the views it draws; the
       # fits stay seed 0's, cached): the run-to-run spread the variants are read against, into OUT32/overfit_seed1
       [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
       sketchmesh bench overfit --out "$OUT32/overfit_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 \
         --iters 4700 --fit-smoothing 4 --set seed=1 ;;
     compare-overfit-v32)  # the 13-shape overfit runs side by side (seconds): overfit-v31 (batch 32, rate 2e-3, 20 min) beside
-      # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes, into OUT32/compare (compare.md/.json/.png,
+      # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes (both seeds), into OUT32/compare (compare.md/.json/.png,
       # and the table's and the chair's rows); the plot and the table's rows to docs/
       sketchmesh bench overfit-compare "default=$OUT31/overfit" "seed1=$OUT32/overfit_seed1" "damping4=$OUT31/overfit_s4" \
-        "batch8=$OUT32/overfit_b8" "lr4e-3=$OUT32/overfit_lr4" "40min=$OUT32/overfit_long" --out "$OUT32/compare" \
+        "batch8=$OUT32/overfit_b8" "lr4e-3=$OUT32/overfit_lr4" "40min=$OUT32/overfit_long" \
+        "40min-seed1=$OUT32/overfit_long_seed1" --out "$OUT32/compare" \
         --shape table_00000 --shape chair_00000
       cp "$OUT32/compare/compare.png" docs/overfit_compare.png
       cp "$OUT32/compare/compare_table_00000.png" docs/overfit_table.png ;;

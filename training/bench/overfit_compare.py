@@ -5,9 +5,9 @@ time, as the developers' guide asks: each ``NAME=DIR`` names a folder that ``ske
 --out DIR`` wrote. The command reads ``DIR/overfit.json`` (the per-shape scores of the predictor and of
 the direct fits) and ``DIR/run/log.csv`` (the training curve), prints one row per variant (training
 minutes, iterations, samples seen in all, a second and per shape, mean silhouette gap to the direct fit,
-mean predicted voxel IoU and the scores of the worst shape), and writes ``compare.md``, ``compare.json`` and ``compare.png`` to
-``--out``: the training silhouette term against wall-clock minutes, every variant on one axes, beside
-each shape's predicted voxel IoU with the direct fit's as the ceiling. With ``--shape SHAPE_ID`` it
+mean predicted voxel IoU and the scores of the worst shape), and writes ``compare.md``, ``compare.json``
+and ``compare.png`` to ``--out``: the training silhouette term against wall-clock minutes, every variant
+on one axes, beside each shape's predicted voxel IoU with the direct fit's as the ceiling. With ``--shape SHAPE_ID`` it
 also writes ``compare_SHAPE_ID.png``: that shape's views, then each variant's predicted mesh from the
 same views, cut from the runs' ``overfit.png`` sheets, to look at beside the numbers.
 
