@@ -217,9 +217,8 @@ def main_overfit_compare(args) -> int:
     if out.exists() and not out.is_dir():
         raise SketchmeshError(f"--out {out} is a file, not a folder")
     record = compare(args.runs)
-    for shape_id in args.shape or []:
-        if shape_id not in record["shapes"]:
-            raise SketchmeshError(f"--shape {shape_id}: not among the compared shapes ({', '.join(record['shapes'])})")
+    # the sheets first: an unknown shape or a sheet of another layout is refused before anything is written
+    sheets = {shape_id: shape_sheet(record, shape_id) for shape_id in dict.fromkeys(args.shape or [])}
     out.mkdir(parents=True, exist_ok=True)
     fits = {v["fit_iters"] for v in record["variants"]}
     table = markdown_table(record)
@@ -231,14 +230,10 @@ def main_overfit_compare(args) -> int:
     atomic_write_text(out / "compare.md", table)
     atomic_write_bytes(out / "compare.png", plot_png(record))
     print(f"wrote {out / 'compare.md'}, {out / 'compare.json'} and {out / 'compare.png'}")
-    for shape_id in dict.fromkeys(args.shape or []):
-        import io
+    from training.loop.trainer import write_png
 
-        from PIL import Image
-
-        buf = io.BytesIO()
-        Image.fromarray(shape_sheet(record, shape_id)).save(buf, format="PNG")
+    for shape_id, sheet in sheets.items():
         path = out / f"compare_{shape_id}.png"
-        atomic_write_bytes(path, buf.getvalue())
+        write_png(path, sheet)
         print(f"wrote {path} (the dataset's views of {shape_id}, then each variant's predicted mesh)")
     return 0
