@@ -162,6 +162,9 @@
 #   overfit-seed-v32 are overfit-v31 at batch 8, at twice the rate, for twice the time and with a second seed,
 #   overfit-long-seed-v32 the 40 minutes with the second seed;
 #   compare-overfit-v32 sets them side by side at equal wall-clock time (OUT32 [out/v32]).
+# Samples or steps at the GPU's batch (2026-11-28, an eighth session; no GPU lent): overfit-b512-v33 and overfit-b128-v33
+#   are overfit-v31 at batch 512 and 128 for the same samples, overfit-b512-lr-v33 at 512 with four times the rate;
+#   compare-overfit-v33 sets them beside overfit-v31 run again on this machine (OUT33 [out/v33]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -256,6 +259,7 @@ RUNS30=${RUNS30:-runs/v30}
 OUT30=${OUT30:-out/v30}
 OUT31=${OUT31:-out/v31}
 OUT32=${OUT32:-out/v32}
+OUT33=${OUT33:-out/v33}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -1967,6 +1971,18 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
       sketchmesh bench overfit --out "$OUT32/overfit_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 \
         --iters 4700 --fit-smoothing 4 --set seed=1 ;;
+    overfit-b512-v33)  # overfit-v31 at batch 512, the lent GPU's batch, for the same samples (4,700 x 32 = 294 x 512;
+      # the same peak rate 2e-3, a 10-step warm-up): do 16 times fewer steps cost the table its legs? The same shapes and
+      # cached fits, no time limit (this CPU takes half as many samples a second at 512 as at 32: about 35 min), into
+      # OUT33/overfit_b512
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT33/overfit_b512" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
+        --iters 294 --batch 512 --fit-smoothing 4 --set lr_warmup=10 ;;
+    overfit-b128-v33)  # overfit-b512-v33 at batch 128 (1,175 steps, a 25-step warm-up): where between 32 and 512 the
+      # steps start to matter, no time limit, into OUT33/overfit_b128
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT33/overfit_b128" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
+        --iters 1175 --batch 128 --fit-smoothing 4 --set lr_warmup=25 ;;
     compare-overfit-v32)  # the 13-shape overfit runs side by side (seconds): overfit-v31 (batch 32, rate 2e-3, 20 min) beside
       # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes (both seeds), into OUT32/compare (compare.md/.json/.png,
       # and the table's and the chair's rows); the plot and the table's rows to docs/
@@ -1976,6 +1992,17 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --shape table_00000 --shape chair_00000
       cp "$OUT32/compare/compare.png" docs/overfit_compare.png
       cp "$OUT32/compare/compare_table_00000.png" docs/overfit_table.png ;;
+    overfit-b512-lr-v33)  # overfit-b512-v33 at four times the peak rate (8e-3: the rate scaled by the square root of the
+      # batch's 16 times; a 20-step warm-up): can a larger step make up for the fewer steps? Into OUT33/overfit_b512_lr8
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT33/overfit_b512_lr8" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
+        --iters 294 --batch 512 --fit-smoothing 4 --set lr_warmup=20 --set lr_mesh=8e-3 ;;
+    compare-overfit-v33)  # overfit-v31 (run again on this session's machine) beside batch 128 and 512 for the same
+      # samples (seconds), into OUT33/compare with the table's and the chair's rows; the plot and the table's rows to docs/
+      sketchmesh bench overfit-compare "batch32=$OUT31/overfit" "batch128=$OUT33/overfit_b128" \
+        "batch512=$OUT33/overfit_b512" "batch512-lr8e-3=$OUT33/overfit_b512_lr8" --out "$OUT33/compare" --shape table_00000 --shape chair_00000
+      cp "$OUT33/compare/compare.png" docs/overfit_batch.png
+      cp "$OUT33/compare/compare_table_00000.png" docs/overfit_batch_table.png ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds
