@@ -11,6 +11,10 @@
 # legs among 13 shapes only after about 17,000 samples of it (overfit-long-v32), and the twenty-first's GPU stage (two
 # calls) gave each category about 42,000 spread over 600 shapes (the paper: 1.28 M a category), so the legged
 # categories need many calls resumed one after another; look at the legs (gallery) after each, not only the mean.
+# Which batch: for the same samples the overfit check ends far behind at batch 512 (gap 0.203, the table a box; 0.183 at
+# four times the rate) and close to batch 32 at 128 (0.089 against 0.080; reproduce_models.sh compare-overfit-v33, from
+# the start on this CPU): train at 128 (SPECS="NAME 128 LR") unless the calibration shows its steps cost nearly as
+# much as 512's here; every stage so far ran at 512.
 #
 #   bash training/gpu_predictor.sh INIT_RUN       on the GPU machine: INIT_RUN holds the predictor to
 #                                                 continue (a slim copy travels in gpucarry/, which
@@ -139,7 +143,8 @@
 #   +0.012 / +0.005 / +0.018 mirror averaged, more than any CPU pass, and became the twenty-first pair (all-v26).
 # The next lent GPU: the same two calls from the bundled twenty-first (assets/models), with SHAPES=800 (2,600 shapes
 #   none of the stages has seen: more shapes is what paid; about 250 s of rendering and 2 x 100 s of generated sets,
-#   so the first call trains about a minute and the second, on the warm machine, the rest), into RUNS g27 / g27b.
+#   so the first call trains about a minute and the second, on the warm machine, the rest), into RUNS g27 / g27b, at
+#   batch 128 (header, "Which batch"; SPECS="g27 128 2e-4", between the CPU recipe's 1e-4 at 32 and g25's 3e-4 at 512).
 #   Choose between it and the twenty-first on more than the validation split's 156 sketches: on them a pair's mean
 #   carries about +-0.016 and a paired difference +-0.001 to 0.003 (sketchmesh eval prints both since 2026-11-28), and
 #   last session's CPU passes looked 0.005-0.015 behind there but were within 0.003 on DATA72's 520 (reproduce_models.sh
