@@ -164,7 +164,7 @@
 #   compare-overfit-v32 sets them side by side at equal wall-clock time (OUT32 [out/v32]).
 # Samples or steps at the GPU's batch (2026-11-28, an eighth session; no GPU lent): overfit-b512-v33 and overfit-b128-v33
 #   are overfit-v31 at batch 512 and 128 for the same samples, overfit-b512-lr-v33 at 512 with four times the rate,
-#   overfit-b128-long-v33 overfit-long-v32 at 128;
+#   overfit-b256-v33 at 256, overfit-b128-long-v33 overfit-long-v32 at 128;
 #   compare-overfit-v33 sets them beside overfit-v31 run again on this machine (OUT33 [out/v33]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
@@ -1993,6 +1993,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --shape table_00000 --shape chair_00000
       cp "$OUT32/compare/compare.png" docs/overfit_compare.png
       cp "$OUT32/compare/compare_table_00000.png" docs/overfit_table.png ;;
+    overfit-b256-v33)  # overfit-b512-v33 at batch 256 (588 steps, a 15-step warm-up): where between 128 and 512 the
+      # fewer steps start to cost, no time limit, into OUT33/overfit_b256
+      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+      sketchmesh bench overfit --out "$OUT33/overfit_b256" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
+        --iters 588 --batch 256 --fit-smoothing 4 --set lr_warmup=15 ;;
     overfit-b128-long-v33)  # overfit-long-v32 at batch 128: its cosine horizon (9,400 / 4 = 2,350 steps) and about its
       # samples (226,880 in 40 min there; 25 min hold them at 128 on this CPU): do the legs come at 128 as at 32? The same
       # shapes and cached fits, into OUT33/overfit_b128_long
@@ -2007,7 +2012,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     compare-overfit-v33)  # overfit-v31 (run again on this session's machine) beside batch 128 and 512 for the same
       # samples, and batch 128 for overfit-long-v32's samples (seconds), into OUT33/compare with the table's and the chair's rows; the plot and the table's rows to docs/
       sketchmesh bench overfit-compare "batch32=$OUT31/overfit" "batch128=$OUT33/overfit_b128" \
-        "batch512=$OUT33/overfit_b512" "batch512-lr8e-3=$OUT33/overfit_b512_lr8" \
+        "batch256=$OUT33/overfit_b256" "batch512=$OUT33/overfit_b512" "batch512-lr8e-3=$OUT33/overfit_b512_lr8" \
         "batch128-25min=$OUT33/overfit_b128_long" --out "$OUT33/compare" --shape table_00000 --shape chair_00000
       cp "$OUT33/compare/compare.png" docs/overfit_batch.png
       cp "$OUT33/compare/compare_table_00000.png" docs/overfit_batch_table.png ;;
