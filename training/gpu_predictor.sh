@@ -12,10 +12,10 @@
 # calls) gave each category about 42,000 spread over 600 shapes (the paper: 1.28 M a category), so the legged
 # categories need many calls resumed one after another; look at the legs (gallery) after each, not only the mean.
 # Which batch: for the same samples the overfit check ends far behind at batch 512 (gap 0.203, the table a box; 0.183 at
-# four times the rate), between at 256 (0.112) and close to batch 32 at 128 (0.089 against 0.080; reproduce_models.sh compare-overfit-v33, from
-# the start on this CPU; at 128 the 40-minute run's samples pass the check with the table on legs, overfit-b128-long-v33):
-# train at 128 (SPECS="NAME 128 LR") unless the calibration shows its steps cost nearly as much as 512's here; every
-# stage so far ran at 512.
+# four times the rate), between at 256 (0.112) and close to batch 32 at 128 (0.089 against 0.080; from the start on
+# this CPU, reproduce_models.sh compare-overfit-v33; at 128 the 40-minute run's samples pass the check with the table
+# on legs, overfit-b128-long-v33): train at 128 (SPECS="NAME 128 LR") unless the calibration shows its steps cost
+# nearly as much as 512's here; every stage so far ran at 512.
 #
 #   bash training/gpu_predictor.sh INIT_RUN       on the GPU machine: INIT_RUN holds the predictor to
 #                                                 continue (a slim copy travels in gpucarry/, which

@@ -277,6 +277,12 @@ PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 5
 # resize-convolutions), the first bundled generator was the original pix2pix U-Net (zero padding, transposed convolutions).
 GENERATOR=(--generator-arch pix2pix)
 
+overfit13() {  # overfit-v31's check again into folder $1, then bench overfit's flags: the same 13 shapes (its data,
+  # built by running overfit-v31 first when missing) and their cached direct fits at damping 4
+  [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
+  local out=$1; shift
+  sketchmesh bench overfit --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
+}
 eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
   case "$1" in
     eval-strong-*) EVAL_EXTRA=(--augment-strength 1.0); EVAL_NAME=eval_strong ;;
@@ -1948,42 +1954,28 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --fit-iters 0 ;;
     overfit-b8-v32)  # overfit-v31 at batch 8 (7 it/s on 2 cores against 3.3 at 32: twice the steps in the same 20 min),
       # the same shapes and their cached fits at damping 4, the cosine horizon at what 20 min hold, into OUT32/overfit_b8
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_b8" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 8400 \
-        --batch 8 --fit-smoothing 4 ;;
+      overfit13 "$OUT32/overfit_b8" --minutes 20 --iters 8400 --batch 8 ;;
     overfit-lr-v32)  # overfit-v31 at twice its peak rate (lr_mesh 4e-3 after the same 100 warm-up steps, batch 32, 20 min),
       # the same shapes and cached fits, into OUT32/overfit_lr4
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_lr4" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 4700 \
-        --fit-smoothing 4 --set lr_mesh=4e-3 ;;
+      overfit13 "$OUT32/overfit_lr4" --minutes 20 --iters 4700 --set lr_mesh=4e-3 ;;
     overfit-long-v32)  # overfit-v31 for twice the time (40 min, the cosine horizon doubled to 9,400 so the rate falls as
       # it did there): does the table stand on legs among the other shapes with more samples, or stay an arch? The same
       # shapes and cached fits, into OUT32/overfit_long (about 42 min)
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_long" --data "$OUT31/overfit/data" --shapes 13 --minutes 40 \
-        --iters 9400 --fit-smoothing 4 ;;
+      overfit13 "$OUT32/overfit_long" --minutes 40 --iters 9400 ;;
     overfit-long-seed-v32)  # overfit-long-v32 with the predictor's seed 1 (as overfit-seed-v32): do the legs at 40 min
       # stand in another run too? Into OUT32/overfit_long_seed1 (about 42 min)
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_long_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 40 \
-        --iters 9400 --fit-smoothing 4 --set seed=1 ;;
+      overfit13 "$OUT32/overfit_long_seed1" --minutes 40 --iters 9400 --set seed=1 ;;
     overfit-seed-v32)  # overfit-v31 again with the predictor's seed 1 (its initial weights and the views it draws; the
       # fits stay seed 0's, cached): the run-to-run spread the variants are read against, into OUT32/overfit_seed1
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_seed1" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 \
-        --iters 4700 --fit-smoothing 4 --set seed=1 ;;
+      overfit13 "$OUT32/overfit_seed1" --minutes 20 --iters 4700 --set seed=1 ;;
     overfit-b512-v33)  # overfit-v31 at batch 512, the lent GPU's batch, for the same samples (4,700 x 32 = 294 x 512;
       # the same peak rate 2e-3, a 10-step warm-up): do 16 times fewer steps cost the table its legs? The same shapes and
       # cached fits, no time limit (this CPU takes half as many samples a second at 512 as at 32: about 35 min), into
       # OUT33/overfit_b512
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT33/overfit_b512" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
-        --iters 294 --batch 512 --fit-smoothing 4 --set lr_warmup=10 ;;
+      overfit13 "$OUT33/overfit_b512" --minutes 0 --iters 294 --batch 512 --set lr_warmup=10 ;;
     overfit-b128-v33)  # overfit-b512-v33 at batch 128 (1,175 steps, a 25-step warm-up): where between 32 and 512 the
       # steps start to matter, no time limit, into OUT33/overfit_b128
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT33/overfit_b128" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
-        --iters 1175 --batch 128 --fit-smoothing 4 --set lr_warmup=25 ;;
+      overfit13 "$OUT33/overfit_b128" --minutes 0 --iters 1175 --batch 128 --set lr_warmup=25 ;;
     compare-overfit-v32)  # the 13-shape overfit runs side by side (seconds): overfit-v31 (batch 32, rate 2e-3, 20 min) beside
       # its second seed, its basis damped at 4, batch 8, rate 4e-3 and 40 minutes (both seeds), into OUT32/compare (compare.md/.json/.png,
       # and the table's and the chair's rows); the plot and the table's rows to docs/
@@ -1995,22 +1987,17 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       cp "$OUT32/compare/compare_table_00000.png" docs/overfit_table.png ;;
     overfit-b256-v33)  # overfit-b512-v33 at batch 256 (588 steps, a 15-step warm-up): where between 128 and 512 the
       # fewer steps start to cost, no time limit, into OUT33/overfit_b256
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT33/overfit_b256" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
-        --iters 588 --batch 256 --fit-smoothing 4 --set lr_warmup=15 ;;
+      overfit13 "$OUT33/overfit_b256" --minutes 0 --iters 588 --batch 256 --set lr_warmup=15 ;;
     overfit-b128-long-v33)  # overfit-long-v32 at batch 128: its cosine horizon (9,400 / 4 = 2,350 steps) and about its
       # samples (226,880 in 40 min there; 25 min hold them at 128 on this CPU): do the legs come at 128 as at 32? The same
       # shapes and cached fits, into OUT33/overfit_b128_long
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT33/overfit_b128_long" --data "$OUT31/overfit/data" --shapes 13 --minutes 25 \
-        --iters 2350 --batch 128 --fit-smoothing 4 --set lr_warmup=25 ;;
+      overfit13 "$OUT33/overfit_b128_long" --minutes 25 --iters 2350 --batch 128 --set lr_warmup=25 ;;
     overfit-b512-lr-v33)  # overfit-b512-v33 at four times the peak rate (8e-3: the rate scaled by the square root of the
       # batch's 16 times; a 20-step warm-up): can a larger step make up for the fewer steps? Into OUT33/overfit_b512_lr8
-      [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT33/overfit_b512_lr8" --data "$OUT31/overfit/data" --shapes 13 --minutes 0 \
-        --iters 294 --batch 512 --fit-smoothing 4 --set lr_warmup=20 --set lr_mesh=8e-3 ;;
-    compare-overfit-v33)  # overfit-v31 (run again on this session's machine) beside batch 128 and 512 for the same
-      # samples, and batch 128 for overfit-long-v32's samples (seconds), into OUT33/compare with the table's and the chair's rows; the plot and the table's rows to docs/
+      overfit13 "$OUT33/overfit_b512_lr8" --minutes 0 --iters 294 --batch 512 --set lr_warmup=20 --set lr_mesh=8e-3 ;;
+    compare-overfit-v33)  # overfit-v31 (run again on this session's machine) beside batch 128, 256 and 512 (and 512 at
+      # 8e-3) for the same samples, and batch 128 for overfit-long-v32's samples (seconds), into OUT33/compare with the
+      # table's and the chair's rows; the plot and the table's rows to docs/
       sketchmesh bench overfit-compare "batch32=$OUT31/overfit" "batch128=$OUT33/overfit_b128" \
         "batch256=$OUT33/overfit_b256" "batch512=$OUT33/overfit_b512" "batch512-lr8e-3=$OUT33/overfit_b512_lr8" \
         "batch128-25min=$OUT33/overfit_b128_long" --out "$OUT33/compare" --shape table_00000 --shape chair_00000
