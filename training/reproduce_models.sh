@@ -166,6 +166,11 @@
 #   are overfit-v31 at batch 512 and 128 for the same samples, overfit-b512-lr-v33 at 512 with four times the rate,
 #   overfit-b256-v33 at 256, overfit-b128-long-v33 overfit-long-v32 at 128;
 #   compare-overfit-v33 sets them beside overfit-v31 run again on this machine (OUT33 [out/v33]).
+# What the normal term adds where the silhouettes cannot carve (2026-11-28, a ninth session; no GPU lent):
+#   overfit-sil-v34 is overfit-v31 silhouette-only (lambda_n 0); overfit-single-v34 and overfit-single-sil-v34 are
+#   overfit-v31 and its silhouette-only twin supervised from the input view alone (extra_views 0, the paper's single
+#   view); overfit-two-v34 and overfit-two-sil-v34 the same from two views (extra_views 1); compare-single-v34 sets the
+#   six side by side (OUT34 [out/v34]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -261,6 +266,7 @@ OUT30=${OUT30:-out/v30}
 OUT31=${OUT31:-out/v31}
 OUT32=${OUT32:-out/v32}
 OUT33=${OUT33:-out/v33}
+OUT34=${OUT34:-out/v34}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -2003,6 +2009,28 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         "batch128-25min=$OUT33/overfit_b128_long" --out "$OUT33/compare" --shape table_00000 --shape chair_00000
       cp "$OUT33/compare/compare.png" docs/overfit_batch.png
       cp "$OUT33/compare/compare_table_00000.png" docs/overfit_batch_table.png ;;
+    overfit-sil-v34)  # overfit-v31 with the normal term off (lambda_n 0): full minus silhouette-only on the 13 shapes,
+      # the same 4,700 iterations and cached fits, into OUT34/overfit_sil
+      overfit13 "$OUT34/overfit_sil" --minutes 0 --iters 4700 --set lambda_n=0 ;;
+    overfit-single-v34)  # overfit-v31 supervised from the input view alone (extra_views 0: no other view's silhouette to
+      # carve the depth, only the normal image), the same iterations, into OUT34/overfit_single
+      overfit13 "$OUT34/overfit_single" --minutes 0 --iters 4700 --set extra_views=0 ;;
+    overfit-single-sil-v34)  # overfit-single-v34 silhouette-only: one view's outline and nothing of depth, into
+      # OUT34/overfit_single_sil
+      overfit13 "$OUT34/overfit_single_sil" --minutes 0 --iters 4700 --set extra_views=0 --set lambda_n=0 ;;
+    overfit-two-v34)  # overfit-v31 supervised from the input view and one other (extra_views 1, the first models'
+      # setting), the same iterations, into OUT34/overfit_two
+      overfit13 "$OUT34/overfit_two" --minutes 0 --iters 4700 --set extra_views=1 ;;
+    overfit-two-sil-v34)  # overfit-two-v34 silhouette-only, into OUT34/overfit_two_sil
+      overfit13 "$OUT34/overfit_two_sil" --minutes 0 --iters 4700 --set extra_views=1 --set lambda_n=0 ;;
+    compare-single-v34)  # overfit-v31 beside overfit-sil-v34 and the one- and two-view runs, full and silhouette-only
+      # (seconds), into OUT34/compare with the car's and the chair's rows; the plot and the car's rows to docs/
+      sketchmesh bench overfit-compare "full-4views=$OUT31/overfit" "silhouette-4views=$OUT34/overfit_sil" \
+        "full-2views=$OUT34/overfit_two" "silhouette-2views=$OUT34/overfit_two_sil" \
+        "full-1view=$OUT34/overfit_single" "silhouette-1view=$OUT34/overfit_single_sil" --out "$OUT34/compare" \
+        --shape car_00000 --shape chair_00000
+      cp "$OUT34/compare/compare.png" docs/overfit_single.png
+      cp "$OUT34/compare/compare_car_00000.png" docs/overfit_single_car.png ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds
