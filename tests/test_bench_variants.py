@@ -45,7 +45,7 @@ def test_bench_variants_end_to_end_resumes_and_plots(data, tmp_path, capsys):
     from sketchmesh.cli import main
 
     out = tmp_path / "v"
-    args = ["bench", "variants", "--data", str(data), "--out", str(out), "--minutes", "0.01", "--points", "2",
+    args = ["bench", "variants", "--data", str(data), "--out", str(out), "--minutes", "0.04", "--points", "2",
             "--max-samples", "4", "--quiet", "--variant", "k1:extra_views=1", "--variant", "k2:extra_views=2", *TINY]
     assert main(args) == 0
     rec = json.loads((out / "variants.json").read_text())
@@ -57,6 +57,9 @@ def test_bench_variants_end_to_end_resumes_and_plots(data, tmp_path, capsys):
         assert 0 < mine[0]["train_minutes"] < mine[1]["train_minutes"]
         assert 0 < mine[0]["iteration"] <= mine[1]["iteration"]
         assert 0 < mine[0]["run_seconds"] < mine[1]["run_seconds"]  # the runs' own cumulative training time
+        # the second chunk trains its own 1.2 s: it is not taken for a killed chunk's leftover (it was, when the
+        # first chunk's training time was measured against no earlier point)
+        assert mine[1]["run_seconds"] - mine[0]["run_seconds"] >= 0.5 * 0.04 / 2 * 60
         assert mine[0]["config"]["extra_views"] == int(name[1])
         for p in mine:
             assert 0.0 <= p["voxel_iou"] <= 1.0 and 0.0 <= p["silhouette_iou"] <= 1.0 and p["samples"] == 4

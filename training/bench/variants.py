@@ -217,8 +217,10 @@ def main_variants(args) -> int:
         for k in range(len(done), int(args.points)):
             t0 = time.perf_counter()
             trainer = Trainer(cfg, progress=not args.quiet)
-            # a chunk killed after a checkpoint (a session that ended) already trained part of this one
-            already = _already_trained(trainer.train_seconds, done[-1] if done else None)
+            # a chunk killed after a checkpoint (a session that ended) already trained part of this one; the last
+            # point is this variant's newest, scored by this call or an earlier one
+            last = next((p for p in reversed(record["points"]) if p["variant"] == name), None)
+            already = _already_trained(trainer.train_seconds, last)
             if not args.quiet:
                 note = f", {already / 60:.2f} min of it trained before a kill" if already else ""
                 print(f"{label(name, cfg.to_dict())}: chunk {k + 1}/{args.points} ({chunk:g} min{note})", flush=True)
