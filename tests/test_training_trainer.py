@@ -680,6 +680,23 @@ def test_render_views_passes_normal_edges_to_the_rasterizer():
     assert (g_edges - g).abs().max() > 1e-3  # the two settings differ
 
 
+def test_normal_edges_is_off_by_default_and_old_runs_keep_the_papers_gradient():
+    """New runs keep the normal image's edge gradient off the outline; a config saved before the field existed
+    (no key) ran with the paper's Eq. 1 gradient on the normal image and loads so; the flag sets either."""
+    from sketchmesh.cli import build_parser
+    from training.cli.train import config_from_args
+
+    assert TrainConfig().normal_edges is False
+    old = TrainConfig(normal_edges=True).to_dict()
+    del old["normal_edges"]
+    assert TrainConfig.from_dict(old).normal_edges is True
+    for saved in (True, False):  # a saved value is kept either way
+        assert TrainConfig.from_json(TrainConfig(normal_edges=saved).to_json()).normal_edges is saved
+    for flags, want in (([], False), (["--normal-edges"], True), (["--normal-edges", "--no-normal-edges"], False)):
+        args = build_parser().parse_args(["train", "mesh", "--data", "d", "--out", "o", *flags])
+        assert config_from_args(args).normal_edges is want
+
+
 def test_slim_copy_keeps_the_models_and_drops_the_optimiser(tmp_path):
     from training.loop.checkpoint import save_slim_copy
 

@@ -37,12 +37,13 @@ NAMES=(normals16 normals8 mesh_silhouette mesh_full mesh_n5e-4)
 
 run_args() {  # the training command of one run (the v2 recipes; GPU, data loader workers)
   local common=(--data "$DATA" --device "$DEVICE" --quiet --plot-every 500)
+  local edges=(--normal-edges)  # the v2 mesh runs' normal term kept the paper's edge gradient (the default until 2026-11-28)
   case "$1" in
     normals16) echo train normals "${common[@]}" --base-channels 16 --batch 4 --num-workers 6 --ckpt-every 500 --val-every 0 ;;
     normals8) echo train normals "${common[@]}" --base-channels 8 --batch 4 --num-workers 4 --ckpt-every 500 --val-every 0 ;;
-    mesh_silhouette) echo train mesh "${common[@]}" --lambda-n 0 --num-workers 2 --ckpt-every 500 --val-every 0 ;;
-    mesh_full) echo train mesh "${common[@]}" --num-workers 2 --ckpt-every 500 --val-every 0 ;;
-    mesh_n5e-4) echo train mesh "${common[@]}" --lambda-n 0.0005 --num-workers 2 --ckpt-every 500 --val-every 0 ;;
+    mesh_silhouette) echo train mesh "${common[@]}" "${edges[@]}" --lambda-n 0 --num-workers 2 --ckpt-every 500 --val-every 0 ;;
+    mesh_full) echo train mesh "${common[@]}" "${edges[@]}" --num-workers 2 --ckpt-every 500 --val-every 0 ;;
+    mesh_n5e-4) echo train mesh "${common[@]}" "${edges[@]}" --lambda-n 0.0005 --num-workers 2 --ckpt-every 500 --val-every 0 ;;
   esac
 }
 

@@ -199,7 +199,9 @@ WORKERS=${WORKERS:-4}
 ARCH=${ARCH:-}  # predictor size flags of `train mesh` (the same in every call that continues the run)
 EXTRA=${EXTRA:-}  # further `train mesh` flags (e.g. --mirror-consistency 50)
 INIT_ARGS=(--init-mesh "$INIT"); [ "$INIT" = fresh ] && INIT_ARGS=()
-INPUT_ARGS=(); [ "$INPUTS" = generated ] && INPUT_ARGS=(--input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges)
+# the calls on true normal images (eighth to tenth pairs) ran with the paper's edge gradient on the normal image, then
+# train mesh's default; it is pinned so they rerun as recorded (the default is off since 2026-11-28)
+INPUT_ARGS=(--normal-edges); [ "$INPUTS" = generated ] && INPUT_ARGS=(--input-normals normals16 --mirror-inputs normals16_mirror --no-normal-edges)
 train_args() {  # NAME BATCH LR -> the training command (the seventh predictor's recipe on INPUTS)
   # shellcheck disable=SC2086
   echo train mesh --data "$DATA" --device "$DEVICE" --quiet "${INIT_ARGS[@]}" "${INPUT_ARGS[@]}" $ARCH $EXTRA --batch "$2" --lr-mesh "$3" \

@@ -168,9 +168,12 @@
 #   compare-overfit-v33 sets them beside overfit-v31 run again on this machine (OUT33 [out/v33]).
 # What the normal term adds where the silhouettes cannot carve (2026-11-28, a ninth session; no GPU lent):
 #   overfit-sil-v34 is overfit-v31 silhouette-only (lambda_n 0); overfit-single-v34 and overfit-single-sil-v34 are
-#   overfit-v31 and its silhouette-only twin supervised from the input view alone (extra_views 0, the paper's single
-#   view); overfit-two-v34 and overfit-two-sil-v34 the same from two views (extra_views 1); compare-single-v34 sets the
-#   six side by side (OUT34 [out/v34]).
+#   overfit-v31 and its silhouette-only twin supervised from the input view alone (extra_views 0: no other view's
+#   outline); compare-single-v34 sets the four side by side (OUT34 [out/v34]). overfit-interior-v34 is overfit-v31 with
+#   the normal term's gradient kept off the outline (--no-normal-edges, as every bundled predictor since the fifth
+#   trains); compare-interior-v34 sets it beside overfit-v31 and overfit-sil-v34; variants-normal-v34 trains the three
+#   from the start on DATA's training shapes for the same 2,000 iterations and scores them on its test shapes;
+#   eval-normal-v34 exports the three beside the bundled generator and scores them from sketches as the app runs them.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -275,6 +278,10 @@ BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predict
 read -r -a CENTRES <<< "${CENTRES---voxel-centres}"
 SHIP_MODELS=${SHIP_MODELS:-$OUT2/models_silhouette_int8}  # the pair ship-v2 bundles (gallery-v2, refine-v2, docs-v2 too)
 SHIP_OUT=${SHIP_OUT:-$OUT2}  # where gallery-v2 and refine-v2 write and docs-v2 reads (with OUT2's tradeoff, eval_clean)  # the fourth models (all-v4): the third models' runs (RUNS2=runs/gpu) with the predictor continued
+# The normal term's edge gradient, pinned: `train mesh` (and the benches that train) keep the normal image's Eq. 1 edge
+# gradient off the outline by default since 2026-11-28 (normal_edges false; model card, "The normal term off the
+# outline from the start"); every step written before ran with it on unless it says --no-normal-edges, and passes
+# --normal-edges (--set normal_edges=true to the benches) so that it reproduces what it published.
 # The first bundled predictor's settings, pinned: the training defaults have since moved on (compact predictor,
 # lr 2e-3 with warm-up, K = 3; see the overfit and variants steps), and these steps reproduce what was bundled first.
 PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 512 --predictor-latent 256
@@ -287,7 +294,7 @@ overfit13() {  # overfit-v31's check again into folder $1, then bench overfit's 
   # built by running overfit-v31 first when missing) and their cached direct fits at damping 4
   [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
   local out=$1; shift
-  sketchmesh bench overfit --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
+  sketchmesh bench overfit --set normal_edges=true --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
 }
 eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
   case "$1" in
@@ -546,21 +553,21 @@ step() {
       sketchmesh train normals --data "$DATA" --out "$RUNS/normals16" --base-channels 16 --batch 4 "${GENERATOR[@]}" \
         --iters "$GEN_ITERS" --threads "$THREADS" --ckpt-every 100 ;;
     mesh)
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_full" --batch 8 "${PREDICTOR[@]}" \
+      sketchmesh train mesh --normal-edges --data "$DATA" --out "$RUNS/mesh_full" --batch 8 "${PREDICTOR[@]}" \
         --normal-region target --iters "$MESH_ITERS" --threads "$THREADS" --ckpt-every 250 --val-every 1000 ;;
     silhouette)  # the Table-1 baseline: the same run with the normal-loss weight 0
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_silhouette" --batch 8 "${PREDICTOR[@]}" \
+      sketchmesh train mesh --normal-edges --data "$DATA" --out "$RUNS/mesh_silhouette" --batch 8 "${PREDICTOR[@]}" \
         --normal-region target --lambda-n 0 --iters "$MESH_ITERS" --threads "$THREADS" --ckpt-every 250 --val-every 1000 ;;
     paper-normal)  # the paper's Eq. 2 over the whole image, for the model card's finding (short run)
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
+      sketchmesh train mesh --normal-edges --data "$DATA" --out "$RUNS/mesh_paper_normal" --batch 8 "${PREDICTOR[@]}" \
         --normal-region image --iters 250 --threads "$THREADS" --log-every 50 --ckpt-every 250 --val-every 250 ;;
     clamp-trial)  # the next change to try: linear (clamped) local offsets instead of tanh (short run)
-      sketchmesh train mesh --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 --predictor-arch softras --predictor-channels 32 \
+      sketchmesh train mesh --normal-edges --data "$DATA" --out "$RUNS/mesh_clamp" --batch 8 --predictor-arch softras --predictor-channels 32 \
         --predictor-hidden 512 --predictor-latent 256 --predictor-local-bound clamp --lr-mesh 1e-4 --lr-warmup 0 \
         --extra-views 1 --normal-region target --iters 1000 --threads 2 --log-every 50 \
         --ckpt-every 250 --val-every 500 ;;
     joint)
-      sketchmesh train joint --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${GENERATOR[@]}" "${PREDICTOR[@]}" \
+      sketchmesh train joint --normal-edges --data "$DATA" --out "$RUNS/joint" --base-channels 16 --batch 4 "${GENERATOR[@]}" "${PREDICTOR[@]}" \
         --normal-region target --init-normals "$RUNS/normals16" --init-mesh "$RUNS/mesh_full" \
         --iters "$JOINT_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
     export)  # the bundled pair (joint fine-tune; width-16 generator float32, predictor int8) and the
@@ -591,25 +598,25 @@ step() {
       mkdir -p docs
       cp "$OUT/variants/variants.png" docs/variants.png ;;
     overfit)  # issue 14's check: the default predictor on 8 training shapes, 20 min, against direct fits of them
-      sketchmesh bench overfit "${CENTRES[@]}" --out "$RUNS/overfit" --minutes 20 --iters 4700 --fit-smoothing 16 ;;
+      sketchmesh bench overfit --set normal_edges=true "${CENTRES[@]}" --out "$RUNS/overfit" --minutes 20 --iters 4700 --fit-smoothing 16 ;;
     variants)  # predictor configurations at equal wall time on the test split (ground-truth normals in)
       # (measured before the cosine decay became the default: these runs keep the constant rate)
-      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants --set normal_edges=true "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --set lr_schedule=constant \
         --variant default --variant k1:extra_views=1 --variant k7:extra_views=7 \
         --variant "softras-paper:predictor_arch=softras,lr_mesh=1e-4,lr_warmup=0,extra_views=1,predictor_local_bound=tanh" \
         --variant 3d-diagnostic:supervision=3d
       # the default alone, continued to 20 minutes (same 2-minute chunks)
-      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
+      sketchmesh bench variants --set normal_edges=true "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 20 --points 10 --max-samples 156 \
         --set lr_schedule=constant --variant default
       # the silhouette-gradient variants (constant rate, like the default they are compared with) and
       # the cosine decay over what 8 minutes hold
-      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants --set normal_edges=true "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --set lr_schedule=constant --variant far8:edge_range=8 --variant soft:silhouette=soft
-      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
+      sketchmesh bench variants --set normal_edges=true "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 8 --points 4 --max-samples 156 \
         --variant cosine:lr_schedule=cosine,iters=1780
       # the cosine default over two hours (resumable: a later call continues the finished chunks)
-      sketchmesh bench variants "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
+      sketchmesh bench variants --set normal_edges=true "${CENTRES[@]}" --data "$DATA" --out "$OUT/variants" --minutes 120 --points 12 --max-samples 156 \
         --variant cosine120:lr_schedule=cosine,iters=30000 ;;
     data-v2)  # 1,300 shapes x 12 azimuths x 4 elevations (0, 15, 30, 45 degrees): 62,400 views
       sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 \
@@ -626,19 +633,19 @@ step() {
       sketchmesh train normals --data "$DATA2" --out "$RUNS2/normals8" --base-channels 8 --batch 4 \
         --iters "$GEN2_ITERS" --threads 1 --ckpt-every 100 ;;
     mesh-v2)  # the default predictor and loss (cosine decay over MESH2_ITERS; one thread)
-      sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_full" --iters "$MESH2_ITERS" --threads 1 \
+      sketchmesh train mesh --normal-edges --data "$DATA2" --out "$RUNS2/mesh_full" --iters "$MESH2_ITERS" --threads 1 \
         --ckpt-every 250 --val-every 2000 ;;
     silhouette-v2)  # the Table-1 baseline: mesh-v2 with the normal-loss weight 0
-      sketchmesh train mesh --data "$DATA2" --out "$RUNS2/mesh_silhouette" --iters "$MESH2_ITERS" --threads 1 \
+      sketchmesh train mesh --normal-edges --data "$DATA2" --out "$RUNS2/mesh_silhouette" --iters "$MESH2_ITERS" --threads 1 \
         --lambda-n 0 --ckpt-every 250 --val-every 2000 ;;
     joint-v2)  # end-to-end fine-tune from the two pre-trainings; the predictor at 1/20 of its pre-training rate
-      sketchmesh train joint --data "$DATA2" --out "$RUNS2/joint" --base-channels 16 --batch 4 \
+      sketchmesh train joint --normal-edges --data "$DATA2" --out "$RUNS2/joint" --base-channels 16 --batch 4 \
         --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_full" --lr-mesh 1e-4 --lr-warmup 0 \
         --iters "$JOINT2_ITERS" --threads 2 --ckpt-every 50 --val-every 250 ;;
     predictor-on-generated-v2)  # experiment: the silhouette-only predictor fine-tuned on the generator's own normal
       # images (generator and discriminator frozen: learning rate 1e-12), to measure the gap between ground-truth
       # and generated normals (joint mode, batch 8, 2 threads, 25 minutes)
-      sketchmesh train joint --data "$DATA2" --out "$RUNS2/predictor_on_generated" --base-channels 16 --batch 8 \
+      sketchmesh train joint --normal-edges --data "$DATA2" --out "$RUNS2/predictor_on_generated" --base-channels 16 --batch 8 \
         --init-normals "$RUNS2/normals16" --init-mesh "$RUNS2/mesh_silhouette" --lambda-n 0 --lr-g 1e-12 --lr-d 1e-12 \
         --lr-mesh 2e-4 --lr-warmup 0 --iters 1200 --max-minutes 25 --threads 2 --ckpt-every 100 --val-every 0
       sketchmesh eval "${CENTRES[@]}" "$RUNS2/predictor_on_generated" --data "$DATA2" --baseline-run "$RUNS2/mesh_silhouette" \
@@ -649,8 +656,8 @@ step() {
       # evaluated on ground-truth normal images: is the predictor limited by its 2D signal or by its shape space?
       local m=${CEIL_MINUTES:-50} cont=(--data "$DATA2" --init-mesh "$RUNS2/mesh_silhouette" --lambda-n 0 --lr-mesh 1e-3
         --iters 8000 --threads 1 --ckpt-every 250 --val-every 0 --quiet)
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_2d" --max-minutes "$m" &
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/continued_3d" --supervision 3d --max-minutes "$m" &
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/continued_2d" --max-minutes "$m" &
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/continued_3d" --supervision 3d --max-minutes "$m" &
       wait
       sketchmesh eval "${CENTRES[@]}" "$RUNS2/continued_2d" --data "$DATA2" --gt-normals --baseline-run "$RUNS2/continued_3d" \
         --baseline-run "$RUNS2/mesh_silhouette" --max-samples "$SAMPLES2" --threads 2 --out "$OUT2/eval_ceiling"
@@ -665,12 +672,12 @@ step() {
       # images of the training sketches (generated-v4; targets still the true images and silhouettes)
       local m=${V4_MINUTES:-45} cont=(--data "$DATA2" --init-mesh "$RUNS2/continued_2d" --lambda-n 0 --lr-mesh 5e-4
         --iters 8000 --threads 1 --ckpt-every 250 --val-every 0 --quiet)
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_true_inputs" --max-minutes "$m" &
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_generated_inputs" --input-normals normals16 --max-minutes "$m" &
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/v4_true_inputs" --max-minutes "$m" &
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/v4_generated_inputs" --input-normals normals16 --max-minutes "$m" &
       wait ;;
     predictor-v4-more)  # the winner of predictor-v4 (generated inputs: +0.036 over true inputs from clean sketches)
       # continued on the same generated inputs for V4B_MINUTES [40] more, alone on two threads
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_inputs" --input-normals normals16 \
+      sketchmesh train mesh --normal-edges --data "$DATA2" --init-mesh "$RUNS2/v4_generated_inputs" --input-normals normals16 \
         --lambda-n 0 --lr-mesh 5e-4 --iters 9000 --threads 2 --ckpt-every 250 --val-every 0 --quiet \
         --out "$RUNS2/v4_generated_more" --max-minutes "${V4B_MINUTES:-40}" ;;
     generated-v5)  # a second drawing of every training view through the same generator: seed 1, the
@@ -683,16 +690,16 @@ step() {
       # v4_generated_last) and once on both sets (v5_two_sets); the same seed, schedule and rate
       local cont=(--data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 --iters 6000
         --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}")
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v4_generated_last" --input-normals normals16
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v5_two_sets" --input-normals normals16,normals16_s1
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/v4_generated_last" --input-normals normals16
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/v5_two_sets" --input-normals normals16,normals16_s1
       # and, on the first set only, with the predictor's fully connected layers doubled (code 256 -> 512,
       # decoder 512 -> 1024; widened so it starts as the same function): capacity, since the predictor
       # scores 0.44 on training sketches against 0.73 for direct fits
-      sketchmesh train mesh "${cont[@]}" --out "$RUNS2/v5_wide" --input-normals normals16 \
+      sketchmesh train mesh --normal-edges "${cont[@]}" --out "$RUNS2/v5_wide" --input-normals normals16 \
         --predictor-latent 512 --predictor-hidden 1024
       # and the full loss: the paper's normal term (weight 0.002) back on, the rest as the control (issue 16's
       # full-minus-silhouette comparison on these runs)
-      sketchmesh train mesh "${cont[@]}" --lambda-n 0.002 --out "$RUNS2/v5_full" --input-normals normals16 ;;
+      sketchmesh train mesh --normal-edges "${cont[@]}" --lambda-n 0.002 --out "$RUNS2/v5_full" --input-normals normals16 ;;
     eval-v5|eval-strong-v5|eval-side-v5|eval-gt-v5)  # the wide and two-set runs against the one-set control and
       # their start (the fourth bundled predictor)
       eval_case "$1"
@@ -763,7 +770,7 @@ EOF
       # with one residual block (two 3x3 convolutions) after each strided convolution, deepened so it starts as the
       # same function; against trials-v5's control (6,000 iterations in 19.4 min). The blocks slow a step from 5.2 to
       # 3.2 iterations per second, so DEEP_ITERS [3400] (17.8 min) fits the same time with a complete cosine decay
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 \
+      sketchmesh train mesh --normal-edges --data "$DATA2" --init-mesh "$RUNS2/v4_generated_more" --lambda-n 0 --lr-mesh 3e-4 \
         --iters "${DEEP_ITERS:-3400}" --threads 2 --ckpt-every 250 --val-every 0 --quiet --max-minutes "${V5_MINUTES:-22}" \
         --out "$RUNS2/v6_deep" --input-normals normals16 --predictor-blocks 1 ;;
     full-interior-v6)  # the full loss with the normal term's gradient kept off the outline (--no-normal-edges: the
@@ -866,7 +873,7 @@ EOF
     control-v7)  # predictor-v7's silhouette-only control: trials-v5's equal-time control (v4_generated_last, the
       # same start and 6,000 iterations against interior-v6's 5,720) trained on for the same 9,000 iterations with
       # the same schedule, normal weight 0 (V7_MINUTES [45] at most, two threads; resumes)
-      sketchmesh train mesh --data "$DATA2" --init-mesh "$RUNS2/v4_generated_last" --lambda-n 0 --lr-mesh 3e-4 \
+      sketchmesh train mesh --normal-edges --data "$DATA2" --init-mesh "$RUNS2/v4_generated_last" --lambda-n 0 --lr-mesh 3e-4 \
         --iters "${V7_ITERS:-9000}" --threads 2 --ckpt-every 250 --val-every 0 --quiet \
         --max-minutes "${V7_MINUTES:-45}" --out "$RUNS2/v7_silhouette_more" --input-normals normals16 ;;
     eval-control-v7|eval-control-strong-v7|eval-control-side-v7|eval-control-gt-v7)  # full minus silhouette-only
@@ -1932,31 +1939,31 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       done ;;
     overfit-v31)  # issue 14's overfit check (overfit: the default predictor trained 20 min on 13 training shapes, one per
       # category) against direct fits at damping 4 (fit-damping-v31's best mean), into OUT31/overfit (about 27 min)
-      sketchmesh bench overfit --out "$OUT31/overfit" --shapes 13 --minutes 20 --iters 4700 --fit-smoothing 4 ;;
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT31/overfit" --shapes 13 --minutes 20 --iters 4700 --fit-smoothing 4 ;;
     overfit-damping-v31)  # overfit-v31 with the predictor's offset basis damped at 4 instead of 16 (from scratch; the same
       # shapes and their cached fits), into OUT31/overfit_s4
       [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
-      sketchmesh bench overfit --out "$OUT31/overfit_s4" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 4700 \
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT31/overfit_s4" --data "$OUT31/overfit/data" --shapes 13 --minutes 20 --iters 4700 \
         --fit-smoothing 4 --set predictor_smoothing=4 ;;
     overfit-table-v31)  # can the predictor learn one table? overfit-v31 on the first training table alone, rendered at the
       # training data's elevations (0, 15, 30, 45; 96 views), 10 min, against its direct fit at damping 4, into
       # OUT31/overfit_table
       [ -f "$OUT31/table1/manifest.json" ] || sketchmesh data --source procedural --categories table --shapes-per-category 1 \
         --elevations 0 15 30 45 --out "$OUT31/table1"
-      sketchmesh bench overfit --out "$OUT31/overfit_table" --data "$OUT31/table1" --shapes 1 --minutes 10 --iters 2350 \
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT31/overfit_table" --data "$OUT31/table1" --shapes 1 --minutes 10 --iters 2350 \
         --fit-smoothing 4 ;;
     overfit-views-v31)  # overfit-table-v31's views and minutes on one shape per category: the first shape of each,
       # rendered at 0, 15, 30 and 45 degrees (the training split holds 12: display_00000 is a test shape), 10 min, against
       # fits at damping 4: is the table lost among the other shapes or at overfit-v31's 30-degree views? Into OUT31/overfit_views
       [ -f "$OUT31/first1/manifest.json" ] || sketchmesh data --source procedural --shapes-per-category 1 \
         --elevations 0 15 30 45 --out "$OUT31/first1"
-      sketchmesh bench overfit --out "$OUT31/overfit_views" --data "$OUT31/first1" --shapes 13 --minutes 10 --iters 2350 \
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT31/overfit_views" --data "$OUT31/first1" --shapes 13 --minutes 10 --iters 2350 \
         --fit-smoothing 4 ;;
     overfit-table310-v32)  # steps or sharing? overfit-table-v31's table alone for the 310 iterations it gets in overfit-v31
       # (4,030 iterations / 13 shapes), no time limit, the cosine horizon at 310, no fit (its fit is overfit-table-v31's),
       # into OUT32/overfit_table310 (about 2 min)
       [ -f "$OUT31/table1/manifest.json" ] || step overfit-table-v31
-      sketchmesh bench overfit --out "$OUT32/overfit_table310" --data "$OUT31/table1" --shapes 1 --minutes 0 --iters 310 \
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT32/overfit_table310" --data "$OUT31/table1" --shapes 1 --minutes 0 --iters 310 \
         --fit-iters 0 ;;
     overfit-b8-v32)  # overfit-v31 at batch 8 (7 it/s on 2 cores against 3.3 at 32: twice the steps in the same 20 min),
       # the same shapes and their cached fits at damping 4, the cosine horizon at what 20 min hold, into OUT32/overfit_b8
@@ -2018,19 +2025,44 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     overfit-single-sil-v34)  # overfit-single-v34 silhouette-only: one view's outline and nothing of depth, into
       # OUT34/overfit_single_sil
       overfit13 "$OUT34/overfit_single_sil" --minutes 0 --iters 4700 --set extra_views=0 --set lambda_n=0 ;;
-    overfit-two-v34)  # overfit-v31 supervised from the input view and one other (extra_views 1, the first models'
-      # setting), the same iterations, into OUT34/overfit_two
-      overfit13 "$OUT34/overfit_two" --minutes 0 --iters 4700 --set extra_views=1 ;;
-    overfit-two-sil-v34)  # overfit-two-v34 silhouette-only, into OUT34/overfit_two_sil
-      overfit13 "$OUT34/overfit_two_sil" --minutes 0 --iters 4700 --set extra_views=1 --set lambda_n=0 ;;
-    compare-single-v34)  # overfit-v31 beside overfit-sil-v34 and the one- and two-view runs, full and silhouette-only
-      # (seconds), into OUT34/compare with the car's and the chair's rows; the plot and the car's rows to docs/
+    overfit-interior-v34)  # overfit-v31 with the normal term off the outline (normal_edges false: its gradient reaches the
+      # vertices through the covered faces' normals only), the same iterations and fits, into OUT34/overfit_interior
+      overfit13 "$OUT34/overfit_interior" --minutes 0 --iters 4700 --set normal_edges=false ;;
+    variants-normal-v34)  # the normal term from the start on shapes the predictor never saw: overfit-v31's predictor
+      # (the paper's normal term), overfit-interior-v34's (its gradient off the outline) and overfit-sil-v34's
+      # (silhouette-only) trained on DATA's training split (data; 30 shapes per category) for 2,000 iterations each (the
+      # cosine's horizon; about 9 min), scored twice on 390 test sketches' true normal images, into OUT34/variants
+      [ -f "$DATA/manifest.json" ] || step data
+      sketchmesh bench variants --data "$DATA" --out "$OUT34/variants" --variant "full-paper:normal_edges=true" \
+        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" --set iters=2000 \
+        --minutes 10 --points 2 --max-samples 390 --threads 2
+      cp "$OUT34/variants/variants.png" docs/normal_term_test.png ;;
+    eval-normal-v34)  # variants-normal-v34's three predictors exported beside the bundled generator (OUT34/models_NAME)
+      # and scored from the test split's line drawings through the app's engine, mirror averaged (4 drawings a shape,
+      # with retrieval and the template sphere as floors), into OUT34/eval_normal
+      local v models=()
+      for v in full-paper full-interior silhouette-only; do
+        rm -rf "$OUT34/models_$v"
+        sketchmesh export "$OUT34/variants/runs/$v" -o "$OUT34/models_$v"
+        cp assets/models/generator.onnx "$OUT34/models_$v/"
+        models+=(--models "$OUT34/models_$v")
+      done
+      sketchmesh eval "${models[@]}" --data "$DATA" --split test --views 4 --mirror-average --threads 2 \
+        --out "$OUT34/eval_normal" ;;
+    compare-single-v34)  # overfit-v31 and overfit-sil-v34 (four views) beside the one-view runs, full and silhouette-only
+      # (seconds), into OUT34/compare_single with the car's rows; those rows to docs/
       sketchmesh bench overfit-compare "full-4views=$OUT31/overfit" "silhouette-4views=$OUT34/overfit_sil" \
-        "full-2views=$OUT34/overfit_two" "silhouette-2views=$OUT34/overfit_two_sil" \
-        "full-1view=$OUT34/overfit_single" "silhouette-1view=$OUT34/overfit_single_sil" --out "$OUT34/compare" \
-        --shape car_00000 --shape chair_00000
-      cp "$OUT34/compare/compare.png" docs/overfit_single.png
-      cp "$OUT34/compare/compare_car_00000.png" docs/overfit_single_car.png ;;
+        "full-1view=$OUT34/overfit_single" "silhouette-1view=$OUT34/overfit_single_sil" --out "$OUT34/compare_single" \
+        --shape car_00000
+      cp "$OUT34/compare_single/compare_car_00000.png" docs/overfit_single_car.png ;;
+    compare-interior-v34)  # overfit-v31 (the paper's normal term) beside overfit-interior-v34 (off the outline) and
+      # overfit-sil-v34 (silhouette-only) (seconds), into OUT34/compare_normal with the table's and the car's rows; the
+      # plot and both rows to docs/
+      sketchmesh bench overfit-compare "full-paper=$OUT31/overfit" "full-interior=$OUT34/overfit_interior" \
+        "silhouette-only=$OUT34/overfit_sil" --out "$OUT34/compare_normal" --shape table_00000 --shape car_00000
+      cp "$OUT34/compare_normal/compare.png" docs/overfit_normal.png
+      cp "$OUT34/compare_normal/compare_table_00000.png" docs/overfit_normal_table.png
+      cp "$OUT34/compare_normal/compare_car_00000.png" docs/overfit_normal_car.png ;;
     soup-v30)  # a weight average ("soup") of the twenty-first predictor and its three CPU passes on DATA70 (predictor-v27's
       # v27_fresh, -low's v27_low, -b512's v27_b512; run them first), equal weights, batch norms set again on 1,024 of
       # DATA70's generated inputs (`sketchmesh average`), into RUNS30/soup4; soup3 leaves the twenty-first out, soup5 adds
