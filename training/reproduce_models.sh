@@ -172,8 +172,9 @@
 #   outline); compare-single-v34 sets the four side by side (OUT34 [out/v34]). overfit-interior-v34 is overfit-v31 with
 #   the normal term's gradient kept off the outline (--no-normal-edges, as every bundled predictor since the fifth
 #   trains); compare-interior-v34 sets it beside overfit-v31 and overfit-sil-v34; variants-normal-v34 trains the three
-#   from the start on DATA's training shapes for the same 2,000 iterations and scores them on its test shapes;
-#   eval-normal-v34 exports the three beside the bundled generator and scores them from sketches as the app runs them.
+#   (and the term off the outline at five times its weight) from the start on DATA's training shapes for the same 2,000
+#   iterations and scores them on its test shapes;
+#   eval-normal-v34 exports the four beside the bundled generator and scores them from sketches as the app runs them.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2030,18 +2031,20 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       overfit13 "$OUT34/overfit_interior" --minutes 0 --iters 4700 --set normal_edges=false ;;
     variants-normal-v34)  # the normal term from the start on shapes the predictor never saw: overfit-v31's predictor
       # (the paper's normal term), overfit-interior-v34's (its gradient off the outline) and overfit-sil-v34's
-      # (silhouette-only) trained on DATA's training split (data; 30 shapes per category) for 2,000 iterations each (the
-      # cosine's horizon; about 9 min), scored twice on 390 test sketches' true normal images, into OUT34/variants
+      # (silhouette-only), and the second with five times the normal weight (0.01), trained on DATA's training split
+      # (data; 30 shapes per category) for 2,000 iterations each (the cosine's horizon; 7-10 min), scored twice on 390
+      # test sketches' true normal images, into OUT34/variants
       [ -f "$DATA/manifest.json" ] || step data
       sketchmesh bench variants --data "$DATA" --out "$OUT34/variants" --variant "full-paper:normal_edges=true" \
-        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" --set iters=2000 \
+        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" \
+        --variant "full-interior-x5:normal_edges=false,lambda_n=0.01" --set iters=2000 \
         --minutes 10 --points 2 --max-samples 390 --threads 2
       cp "$OUT34/variants/variants.png" docs/normal_term_test.png ;;
-    eval-normal-v34)  # variants-normal-v34's three predictors exported beside the bundled generator (OUT34/models_NAME)
+    eval-normal-v34)  # variants-normal-v34's four predictors exported beside the bundled generator (OUT34/models_NAME)
       # and scored from the test split's line drawings through the app's engine, mirror averaged (4 drawings a shape,
       # with retrieval and the template sphere as floors), into OUT34/eval_normal
       local v models=()
-      for v in full-paper full-interior silhouette-only; do
+      for v in full-paper full-interior silhouette-only full-interior-x5; do
         rm -rf "$OUT34/models_$v"
         sketchmesh export "$OUT34/variants/runs/$v" -o "$OUT34/models_$v"
         cp assets/models/generator.onnx "$OUT34/models_$v/"
