@@ -292,7 +292,8 @@ PREDICTOR=(--predictor-arch softras --predictor-channels 32 --predictor-hidden 5
 GENERATOR=(--generator-arch pix2pix)
 
 overfit13() {  # overfit-v31's check again into folder $1, then bench overfit's flags: the same 13 shapes (its data,
-  # built by running overfit-v31 first when missing) and their cached direct fits at damping 4
+  # built by running overfit-v31 first when missing), their cached direct fits at damping 4 and, as overfit-v31 ran,
+  # the paper's edge gradient on the normal image (a later --set normal_edges=false wins)
   [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
   local out=$1; shift
   sketchmesh bench overfit --set normal_edges=true --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
@@ -2031,7 +2032,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       overfit13 "$OUT34/overfit_interior" --minutes 0 --iters 4700 --set normal_edges=false ;;
     variants-normal-v34)  # the normal term from the start on shapes the predictor never saw: overfit-v31's predictor
       # (the paper's normal term), overfit-interior-v34's (its gradient off the outline) and overfit-sil-v34's
-      # (silhouette-only), and the second with five times the normal weight (0.01), trained on DATA's training split
+      # (silhouette-only), and full-interior at five times the normal weight (0.01), trained on DATA's training split
       # (data; 30 shapes per category) for 2,000 iterations each (the cosine's horizon; 7-10 min), scored twice on 390
       # test sketches' true normal images, into OUT34/variants
       [ -f "$DATA/manifest.json" ] || step data

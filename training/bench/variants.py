@@ -217,10 +217,8 @@ def main_variants(args) -> int:
         for k in range(len(done), int(args.points)):
             t0 = time.perf_counter()
             trainer = Trainer(cfg, progress=not args.quiet)
-            # a chunk killed after a checkpoint (a session that ended) already trained part of this one; the last
-            # point is this variant's newest, scored by this call or an earlier one
-            last = next((p for p in reversed(record["points"]) if p["variant"] == name), None)
-            already = _already_trained(trainer.train_seconds, last)
+            # a chunk killed after a checkpoint (a session that ended) already trained part of this one
+            already = _already_trained(trainer.train_seconds, done[-1] if done else None)
             if not args.quiet:
                 note = f", {already / 60:.2f} min of it trained before a kill" if already else ""
                 print(f"{label(name, cfg.to_dict())}: chunk {k + 1}/{args.points} ({chunk:g} min{note})", flush=True)
@@ -236,6 +234,7 @@ def main_variants(args) -> int:
                      "silhouette_iou": float(m["silhouette_iou"]), "chamfer_l1": float(m["chamfer_l1"]),
                      "samples": int(res["samples"]), "config": cfg.to_dict()}
             record["points"].append(point)
+            done.append(point)  # this variant's newest point, which the next chunk's killed-chunk check reads
             _write(out, record)
             if not args.quiet:
                 print(f"  {trained_s / 60:.1f} min, iteration {trainer.iteration}: voxel IoU {point['voxel_iou']:.4f}, "
