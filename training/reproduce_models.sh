@@ -175,6 +175,15 @@
 #   (and the term off the outline at five times its weight) from the start on DATA's training shapes for the same 2,000
 #   iterations and scores them on its test shapes;
 #   eval-normal-v34 exports the four beside the bundled generator and scores them from sketches as the app runs them.
+# Does the normal term's gain grow with the shapes? (2026-11-29, a tenth session; no GPU lent): data100-v35 renders
+#   DATA100's 100 shapes per category as DATA renders 30 (the same generator draws the same shape for a category and
+#   index, and the split is a hash of them: DATA's test shapes are DATA100's too); variants-data-v35 trains
+#   variants-normal-v34's full-interior, silhouette-only and full-interior-x5 on it for the same 2,000 iterations;
+#   eval-data-v35 scores those three and variants-normal-v34's from DATA100's test drawings as the app runs them
+#   (OUT35 [out/v35]); variants-data-long-v35 and eval-data-long-v35 are full-interior and silhouette-only trained on
+#   DATA100 twice as long (4,000 iterations) and scored the same ways.
+#   eval-gt-data-v35 scores variants-normal-v34's and variants-data-v35's predictors on the same 520 test views' true
+#   normal images (the 100-shape ones as variants-data-v35 scored them: a check of that table).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -271,6 +280,8 @@ OUT31=${OUT31:-out/v31}
 OUT32=${OUT32:-out/v32}
 OUT33=${OUT33:-out/v33}
 OUT34=${OUT34:-out/v34}
+OUT35=${OUT35:-out/v35}
+DATA100=${DATA100:-data/proc100}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -2053,6 +2064,67 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       done
       sketchmesh eval "${models[@]}" --data "$DATA" --split test --views 4 --mirror-average --threads 2 \
         --out "$OUT34/eval_normal" ;;
+    data100-v35)  # DATA's settings (30 degrees, 24 azimuths) at 100 shapes per category (13.4 min on 2 cores), into DATA100
+      sketchmesh data --source procedural --shapes-per-category 100 --workers 2 --out "$DATA100" ;;
+    variants-data-v35)  # variants-normal-v34's full-interior, silhouette-only and full-interior-x5 trained on DATA100's
+      # training split (1,043 shapes against DATA's 312) for the same 2,000 iterations (7 min each), scored twice on
+      # 520 of its test split's true normal images (4 a shape), into OUT35/variants
+      [ -f "$DATA100/manifest.json" ] || step data100-v35
+      sketchmesh bench variants --data "$DATA100" --out "$OUT35/variants" \
+        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" \
+        --variant "full-interior-x5:normal_edges=false,lambda_n=0.01" --set iters=2000 \
+        --minutes 10 --points 2 --max-samples 520 --threads 2
+      cp "$OUT35/variants/variants.png" docs/normal_term_data.png ;;
+    eval-data-v35)  # variants-data-v35's three predictors and variants-normal-v34's (trained on 30 shapes per category),
+      # each exported beside the bundled generator and scored from DATA100's test drawings (4 a shape) through the app's
+      # engine, mirror averaged: silhouette-only first, so each table's paired differences are full minus
+      # silhouette-only at that data size; retrieval (DATA100's training shapes) and the template as floors with the
+      # 100-shape predictors, into OUT35/eval_data100 and OUT35/eval_data30
+      local v n
+      for v in silhouette-only full-interior full-interior-x5; do
+        [ -f "$OUT34/variants/runs/$v/config.json" ] || step variants-normal-v34
+        [ -f "$OUT35/variants/runs/$v/config.json" ] || step variants-data-v35
+        rm -rf "$OUT35/models30_$v" "$OUT35/models100_$v"
+        sketchmesh export "$OUT34/variants/runs/$v" -o "$OUT35/models30_$v"
+        sketchmesh export "$OUT35/variants/runs/$v" -o "$OUT35/models100_$v"
+        cp assets/models/generator.onnx "$OUT35/models30_$v/"
+        cp assets/models/generator.onnx "$OUT35/models100_$v/"
+      done
+      for n in 100 30; do
+        sketchmesh eval --models "$OUT35/models${n}_silhouette-only" --models "$OUT35/models${n}_full-interior" \
+          --models "$OUT35/models${n}_full-interior-x5" --data "$DATA100" --split test --views 4 --mirror-average \
+          --threads 2 --out "$OUT35/eval_data$n" $([ "$n" = 30 ] && echo --no-retrieval)
+      done ;;
+    variants-data-long-v35)  # variants-data-v35's full-interior and silhouette-only for twice the iterations (4,000, the
+      # cosine's horizon; about 17 min each), scored at 10 min and at the end on the same 520 test views, into
+      # OUT35/variants_long
+      [ -f "$DATA100/manifest.json" ] || step data100-v35
+      sketchmesh bench variants --data "$DATA100" --out "$OUT35/variants_long" \
+        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" --set iters=4000 \
+        --minutes 20 --points 2 --max-samples 520 --threads 2
+      cp "$OUT35/variants_long/variants.png" docs/normal_term_long.png ;;
+    eval-data-long-v35)  # variants-data-long-v35's two predictors scored as eval-data-v35 scores its (silhouette-only
+      # first), into OUT35/eval_data100_long
+      local v
+      for v in silhouette-only full-interior; do
+        [ -f "$OUT35/variants_long/runs/$v/config.json" ] || step variants-data-long-v35
+        rm -rf "$OUT35/models100long_$v"
+        sketchmesh export "$OUT35/variants_long/runs/$v" -o "$OUT35/models100long_$v"
+        cp assets/models/generator.onnx "$OUT35/models100long_$v/"
+      done
+      sketchmesh eval --models "$OUT35/models100long_silhouette-only" --models "$OUT35/models100long_full-interior" \
+        --data "$DATA100" --split test --views 4 --mirror-average --threads 2 --no-retrieval \
+        --out "$OUT35/eval_data100_long" ;;
+    eval-gt-data-v35)  # variants-normal-v34's three predictors (30 shapes per category) and variants-data-v35's (100) on
+      # DATA100's test split from true normal images, the same 520 views as variants-data-v35 (about 1 min each table),
+      # into OUT35/eval_gt30 and OUT35/eval_gt100
+      local n r
+      for n in 30 100; do
+        r=$OUT35/variants; [ "$n" = 30 ] && r=$OUT34/variants
+        sketchmesh eval "$r/runs/full-interior" --baseline-run "$r/runs/silhouette-only" \
+          --baseline-run "$r/runs/full-interior-x5" --data "$DATA100" --gt-normals --no-retrieval --max-samples 520 \
+          --threads 2 --out "$OUT35/eval_gt$n"
+      done ;;
     compare-single-v34)  # overfit-v31 and overfit-sil-v34 (four views) beside the one-view runs, full and silhouette-only
       # (seconds), into OUT34/compare_single with the car's rows; those rows to docs/
       sketchmesh bench overfit-compare "full-4views=$OUT31/overfit" "silhouette-4views=$OUT34/overfit_sil" \
