@@ -184,6 +184,10 @@
 #   DATA100 twice as long (4,000 iterations) and scored the same ways.
 #   eval-gt-data-v35 scores variants-normal-v34's and variants-data-v35's predictors on the same 520 test views' true
 #   normal images (the 100-shape ones as variants-data-v35 scored them: a check of that table).
+#   gen-inputs-v35 runs the bundled generator over DATA's training drawings (the inputs the app feeds the predictor);
+#   variants-gen-v35 trains full-interior and silhouette-only from the start reading them, and eval-gen-v35 scores
+#   those two as eval-data-v35 scores its (does the normal term add more when the predictor reads what the app feeds it?).
+#   gallery-data-v35 draws variants-data-long-v35's two predictors' meshes from the same test drawings, side by side.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2125,6 +2129,40 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
           --baseline-run "$r/runs/full-interior-x5" --data "$DATA100" --gt-normals --no-retrieval --max-samples 520 \
           --threads 2 --out "$OUT35/eval_gt$n"
       done ;;
+    gen-inputs-v35)  # the bundled generator's 64x64 normal images of DATA's training drawings (hand-drawn augmentation
+      # 0.5, as the bundled recipe's sets), into DATA/.cache/generated/bundled (resumes)
+      [ -f "$DATA/manifest.json" ] || step data
+      sketchmesh data generated "$DATA" --models assets/models --name bundled --split train --workers 2 ;;
+    variants-gen-v35)  # variants-normal-v34's full-interior and silhouette-only, each reading the bundled generator's
+      # images of the drawings (gen-inputs-v35) instead of the true normal images; the targets stay the true images and
+      # silhouettes. 2,000 iterations each; the bench's scores (true normal images in) are off these predictors' inputs:
+      # eval-gen-v35 scores them from drawings. Into OUT35/variants_gen
+      [ -f "$DATA/.cache/generated/bundled/done.npy" ] || step gen-inputs-v35
+      sketchmesh bench variants --data "$DATA" --out "$OUT35/variants_gen" \
+        --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" --set iters=2000 \
+        --set input_normals=bundled --minutes 10 --points 2 --max-samples 390 --threads 2 ;;
+    eval-gen-v35)  # variants-gen-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
+      # silhouette-only first), into OUT35/eval_gen
+      local v
+      for v in silhouette-only full-interior; do
+        [ -f "$OUT35/variants_gen/runs/$v/config.json" ] || step variants-gen-v35
+        rm -rf "$OUT35/modelsgen_$v"
+        sketchmesh export "$OUT35/variants_gen/runs/$v" -o "$OUT35/modelsgen_$v"
+        cp assets/models/generator.onnx "$OUT35/modelsgen_$v/"
+      done
+      sketchmesh eval --models "$OUT35/modelsgen_silhouette-only" --models "$OUT35/modelsgen_full-interior" \
+        --data "$DATA100" --split test --views 4 --mirror-average --threads 2 --no-retrieval --out "$OUT35/eval_gen" ;;
+    gallery-data-v35)  # eval-data-long-v35's two model folders on the same test drawings of the chair, the sofa, the
+      # cabinet and the car (two shapes each, mirror averaged as the app runs them; seconds), the per-category bars of
+      # eval-gt-data-v35's 100-shape table: to docs/
+      local v
+      for v in full-interior silhouette-only; do
+        [ -f "$OUT35/models100long_$v/mesh_predictor.onnx" ] || step eval-data-long-v35
+        sketchmesh gallery --data "$DATA100" --models "$OUT35/models100long_$v" --categories chair sofa cabinet car \
+          --per-category 2 --mirror-average --threads 2 -o "docs/normal_term_gallery_$v.png"
+      done
+      [ -f "$OUT35/eval_gt100/eval_test.png" ] || step eval-gt-data-v35
+      cp "$OUT35/eval_gt100/eval_test.png" docs/normal_term_categories.png ;;
     compare-single-v34)  # overfit-v31 and overfit-sil-v34 (four views) beside the one-view runs, full and silhouette-only
       # (seconds), into OUT34/compare_single with the car's rows; those rows to docs/
       sketchmesh bench overfit-compare "full-4views=$OUT31/overfit" "silhouette-4views=$OUT34/overfit_sil" \
