@@ -188,6 +188,8 @@
 #   variants-gen-v35 trains full-interior and silhouette-only from the start reading them, and eval-gen-v35 scores
 #   those two as eval-data-v35 scores its (does the normal term add more when the predictor reads what the app feeds it?).
 #   gallery-data-v35 draws variants-data-long-v35's two predictors' meshes from the same test drawings, side by side.
+#   variants-views-v35 and eval-views-v35: full-interior and silhouette-only with one other view in the loss instead of
+#   three (extra_views 1: the silhouettes carve less of the depth), trained and scored as variants-normal-v34's.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -312,6 +314,22 @@ overfit13() {  # overfit-v31's check again into folder $1, then bench overfit's 
   [ -f "$OUT31/overfit/data/manifest.json" ] || step overfit-v31
   local out=$1; shift
   sketchmesh bench overfit --set normal_edges=true --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
+}
+drawings100() {  # $1 a bench-variants folder, $2 a model-folder prefix, $3 the eval folder, $4 the step that trains the
+  # runs when missing, $5 yes|no retrieval, then variant names: each $1/runs/VARIANT exported to $2_VARIANT beside the
+  # bundled generator and scored from DATA100's test drawings (4 a shape) through the app's engine, mirror averaged,
+  # the first variant first (the table's paired differences are to it)
+  local runs=$1 prefix=$2 out=$3 prereq=$4 retrieval=$5 v models=() extra=(--no-retrieval); shift 5
+  [ "$retrieval" = yes ] && extra=()
+  for v in "$@"; do
+    [ -f "$runs/runs/$v/config.json" ] || step "$prereq"
+    rm -rf "${prefix}_$v"
+    sketchmesh export "$runs/runs/$v" -o "${prefix}_$v"
+    cp assets/models/generator.onnx "${prefix}_$v/"
+    models+=(--models "${prefix}_$v")
+  done
+  sketchmesh eval "${models[@]}" --data "$DATA100" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
+    --out "$out"
 }
 eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
   case "$1" in
@@ -2080,25 +2098,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --minutes 10 --points 2 --max-samples 520 --threads 2
       cp "$OUT35/variants/variants.png" docs/normal_term_data.png ;;
     eval-data-v35)  # variants-data-v35's three predictors and variants-normal-v34's (trained on 30 shapes per category),
-      # each exported beside the bundled generator and scored from DATA100's test drawings (4 a shape) through the app's
-      # engine, mirror averaged: silhouette-only first, so each table's paired differences are full minus
-      # silhouette-only at that data size; retrieval (DATA100's training shapes) and the template as floors with the
-      # 100-shape predictors, into OUT35/eval_data100 and OUT35/eval_data30
-      local v n
-      for v in silhouette-only full-interior full-interior-x5; do
-        [ -f "$OUT34/variants/runs/$v/config.json" ] || step variants-normal-v34
-        [ -f "$OUT35/variants/runs/$v/config.json" ] || step variants-data-v35
-        rm -rf "$OUT35/models30_$v" "$OUT35/models100_$v"
-        sketchmesh export "$OUT34/variants/runs/$v" -o "$OUT35/models30_$v"
-        sketchmesh export "$OUT35/variants/runs/$v" -o "$OUT35/models100_$v"
-        cp assets/models/generator.onnx "$OUT35/models30_$v/"
-        cp assets/models/generator.onnx "$OUT35/models100_$v/"
-      done
-      for n in 100 30; do
-        sketchmesh eval --models "$OUT35/models${n}_silhouette-only" --models "$OUT35/models${n}_full-interior" \
-          --models "$OUT35/models${n}_full-interior-x5" --data "$DATA100" --split test --views 4 --mirror-average \
-          --threads 2 --out "$OUT35/eval_data$n" $([ "$n" = 30 ] && echo --no-retrieval)
-      done ;;
+      # each exported beside the bundled generator and scored from DATA100's test drawings: silhouette-only first, so
+      # each table's paired differences are full minus silhouette-only at that data size; retrieval (DATA100's training
+      # shapes) with the 100-shape predictors, into OUT35/eval_data100 and OUT35/eval_data30
+      drawings100 "$OUT35/variants" "$OUT35/models100" "$OUT35/eval_data100" variants-data-v35 yes \
+        silhouette-only full-interior full-interior-x5
+      drawings100 "$OUT34/variants" "$OUT35/models30" "$OUT35/eval_data30" variants-normal-v34 no \
+        silhouette-only full-interior full-interior-x5 ;;
     variants-data-long-v35)  # variants-data-v35's full-interior and silhouette-only for twice the iterations (4,000, the
       # cosine's horizon; about 17 min each), scored at 10 min and at the end on the same 520 test views, into
       # OUT35/variants_long
@@ -2109,16 +2115,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       cp "$OUT35/variants_long/variants.png" docs/normal_term_long.png ;;
     eval-data-long-v35)  # variants-data-long-v35's two predictors scored as eval-data-v35 scores its (silhouette-only
       # first), into OUT35/eval_data100_long
-      local v
-      for v in silhouette-only full-interior; do
-        [ -f "$OUT35/variants_long/runs/$v/config.json" ] || step variants-data-long-v35
-        rm -rf "$OUT35/models100long_$v"
-        sketchmesh export "$OUT35/variants_long/runs/$v" -o "$OUT35/models100long_$v"
-        cp assets/models/generator.onnx "$OUT35/models100long_$v/"
-      done
-      sketchmesh eval --models "$OUT35/models100long_silhouette-only" --models "$OUT35/models100long_full-interior" \
-        --data "$DATA100" --split test --views 4 --mirror-average --threads 2 --no-retrieval \
-        --out "$OUT35/eval_data100_long" ;;
+      drawings100 "$OUT35/variants_long" "$OUT35/models100long" "$OUT35/eval_data100_long" variants-data-long-v35 no \
+        silhouette-only full-interior ;;
     eval-gt-data-v35)  # variants-normal-v34's three predictors (30 shapes per category) and variants-data-v35's (100) on
       # DATA100's test split from true normal images, the same 520 views as variants-data-v35 (about 1 min each table),
       # into OUT35/eval_gt30 and OUT35/eval_gt100
@@ -2143,15 +2141,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --set input_normals=bundled --minutes 10 --points 2 --max-samples 390 --threads 2 ;;
     eval-gen-v35)  # variants-gen-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
       # silhouette-only first), into OUT35/eval_gen
-      local v
-      for v in silhouette-only full-interior; do
-        [ -f "$OUT35/variants_gen/runs/$v/config.json" ] || step variants-gen-v35
-        rm -rf "$OUT35/modelsgen_$v"
-        sketchmesh export "$OUT35/variants_gen/runs/$v" -o "$OUT35/modelsgen_$v"
-        cp assets/models/generator.onnx "$OUT35/modelsgen_$v/"
-      done
-      sketchmesh eval --models "$OUT35/modelsgen_silhouette-only" --models "$OUT35/modelsgen_full-interior" \
-        --data "$DATA100" --split test --views 4 --mirror-average --threads 2 --no-retrieval --out "$OUT35/eval_gen" ;;
+      drawings100 "$OUT35/variants_gen" "$OUT35/modelsgen" "$OUT35/eval_gen" variants-gen-v35 no \
+        silhouette-only full-interior ;;
     gallery-data-v35)  # eval-data-long-v35's two model folders on the same test drawings of the chair, the sofa, the
       # cabinet and the car (two shapes each, mirror averaged as the app runs them; seconds), the per-category bars of
       # eval-gt-data-v35's 100-shape table: to docs/
@@ -2163,6 +2154,18 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       done
       [ -f "$OUT35/eval_gt100/eval_test.png" ] || step eval-gt-data-v35
       cp "$OUT35/eval_gt100/eval_test.png" docs/normal_term_categories.png ;;
+    variants-views-v35)  # variants-normal-v34's full-interior and silhouette-only with the input view and one other in
+      # the loss (extra_views 1, against 3), on DATA for 2,000 iterations, scored on the same 390 test views' true
+      # normal images, into OUT35/variants_views
+      [ -f "$DATA/manifest.json" ] || step data
+      sketchmesh bench variants --data "$DATA" --out "$OUT35/variants_views" \
+        --variant "full-interior-k1:normal_edges=false,extra_views=1" \
+        --variant "silhouette-only-k1:lambda_n=0,extra_views=1" --set iters=2000 --minutes 10 --points 2 \
+        --max-samples 390 --threads 2 ;;
+    eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
+      # silhouette-only first), into OUT35/eval_views
+      drawings100 "$OUT35/variants_views" "$OUT35/modelsviews" "$OUT35/eval_views" variants-views-v35 no \
+        silhouette-only-k1 full-interior-k1 ;;
     compare-single-v34)  # overfit-v31 and overfit-sil-v34 (four views) beside the one-view runs, full and silhouette-only
       # (seconds), into OUT34/compare_single with the car's rows; those rows to docs/
       sketchmesh bench overfit-compare "full-4views=$OUT31/overfit" "silhouette-4views=$OUT34/overfit_sil" \
