@@ -315,11 +315,11 @@ overfit13() {  # overfit-v31's check again into folder $1, then bench overfit's 
   local out=$1; shift
   sketchmesh bench overfit --set normal_edges=true --out "$out" --data "$OUT31/overfit/data" --shapes 13 --fit-smoothing 4 "$@"
 }
-drawings100() {  # $1 a bench-variants folder, $2 a model-folder prefix, $3 the eval folder, $4 the step that trains the
-  # runs when missing, $5 yes|no retrieval, then variant names: each $1/runs/VARIANT exported to $2_VARIANT beside the
-  # bundled generator and scored from DATA100's test drawings (4 a shape) through the app's engine, mirror averaged,
-  # the first variant first (the table's paired differences are to it)
-  local runs=$1 prefix=$2 out=$3 prereq=$4 retrieval=$5 v models=() extra=(--no-retrieval); shift 5
+drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants folder, $4 a model-folder prefix, $5 the
+  # eval folder, $6 the step that trains the runs when missing, then variant names: each $3/runs/VARIANT exported to
+  # $4_VARIANT beside the bundled generator and scored from $1's test drawings (4 a shape) through the app's engine,
+  # mirror averaged, the first variant first (the table's paired differences are to it)
+  local data=$1 retrieval=$2 runs=$3 prefix=$4 out=$5 prereq=$6 v models=() extra=(--no-retrieval); shift 6
   [ "$retrieval" = yes ] && extra=()
   for v in "$@"; do
     [ -f "$runs/runs/$v/config.json" ] || step "$prereq"
@@ -328,7 +328,7 @@ drawings100() {  # $1 a bench-variants folder, $2 a model-folder prefix, $3 the 
     cp assets/models/generator.onnx "${prefix}_$v/"
     models+=(--models "${prefix}_$v")
   done
-  sketchmesh eval "${models[@]}" --data "$DATA100" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
+  sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
 eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
@@ -2077,15 +2077,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     eval-normal-v34)  # variants-normal-v34's four predictors exported beside the bundled generator (OUT34/models_NAME)
       # and scored from the test split's line drawings through the app's engine, mirror averaged (4 drawings a shape,
       # with retrieval and the template sphere as floors), into OUT34/eval_normal
-      local v models=()
-      for v in full-paper full-interior silhouette-only full-interior-x5; do
-        rm -rf "$OUT34/models_$v"
-        sketchmesh export "$OUT34/variants/runs/$v" -o "$OUT34/models_$v"
-        cp assets/models/generator.onnx "$OUT34/models_$v/"
-        models+=(--models "$OUT34/models_$v")
-      done
-      sketchmesh eval "${models[@]}" --data "$DATA" --split test --views 4 --mirror-average --threads 2 \
-        --out "$OUT34/eval_normal" ;;
+      drawings_eval "$DATA" yes "$OUT34/variants" "$OUT34/models" "$OUT34/eval_normal" variants-normal-v34 \
+        full-paper full-interior silhouette-only full-interior-x5 ;;
     data100-v35)  # DATA's settings (30 degrees, 24 azimuths) at 100 shapes per category (13.4 min on 2 cores), into DATA100
       sketchmesh data --source procedural --shapes-per-category 100 --workers 2 --out "$DATA100" ;;
     variants-data-v35)  # variants-normal-v34's full-interior, silhouette-only and full-interior-x5 trained on DATA100's
@@ -2101,9 +2094,9 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # each exported beside the bundled generator and scored from DATA100's test drawings: silhouette-only first, so
       # each table's paired differences are full minus silhouette-only at that data size; retrieval (DATA100's training
       # shapes) with the 100-shape predictors, into OUT35/eval_data100 and OUT35/eval_data30
-      drawings100 "$OUT35/variants" "$OUT35/models100" "$OUT35/eval_data100" variants-data-v35 yes \
+      drawings_eval "$DATA100" yes "$OUT35/variants" "$OUT35/models100" "$OUT35/eval_data100" variants-data-v35 \
         silhouette-only full-interior full-interior-x5
-      drawings100 "$OUT34/variants" "$OUT35/models30" "$OUT35/eval_data30" variants-normal-v34 no \
+      drawings_eval "$DATA100" no "$OUT34/variants" "$OUT35/models30" "$OUT35/eval_data30" variants-normal-v34 \
         silhouette-only full-interior full-interior-x5 ;;
     variants-data-long-v35)  # variants-data-v35's full-interior and silhouette-only for twice the iterations (4,000, the
       # cosine's horizon; about 17 min each), scored at 10 min and at the end on the same 520 test views, into
@@ -2115,7 +2108,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       cp "$OUT35/variants_long/variants.png" docs/normal_term_long.png ;;
     eval-data-long-v35)  # variants-data-long-v35's two predictors scored as eval-data-v35 scores its (silhouette-only
       # first), into OUT35/eval_data100_long
-      drawings100 "$OUT35/variants_long" "$OUT35/models100long" "$OUT35/eval_data100_long" variants-data-long-v35 no \
+      drawings_eval "$DATA100" no "$OUT35/variants_long" "$OUT35/models100long" "$OUT35/eval_data100_long" variants-data-long-v35 \
         silhouette-only full-interior ;;
     eval-gt-data-v35)  # variants-normal-v34's three predictors (30 shapes per category) and variants-data-v35's (100) on
       # DATA100's test split from true normal images, the same 520 views as variants-data-v35 (about 1 min each table),
@@ -2135,13 +2128,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # images of the drawings (gen-inputs-v35) instead of the true normal images; the targets stay the true images and
       # silhouettes. 2,000 iterations each; the bench's scores (true normal images in) are off these predictors' inputs:
       # eval-gen-v35 scores them from drawings. Into OUT35/variants_gen
-      [ -f "$DATA/.cache/generated/bundled/done.npy" ] || step gen-inputs-v35
+      step gen-inputs-v35  # resumes a partial set; seconds when complete
       sketchmesh bench variants --data "$DATA" --out "$OUT35/variants_gen" \
         --variant "full-interior:normal_edges=false" --variant "silhouette-only:lambda_n=0" --set iters=2000 \
         --set input_normals=bundled --minutes 10 --points 2 --max-samples 390 --threads 2 ;;
     eval-gen-v35)  # variants-gen-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
       # silhouette-only first), into OUT35/eval_gen
-      drawings100 "$OUT35/variants_gen" "$OUT35/modelsgen" "$OUT35/eval_gen" variants-gen-v35 no \
+      drawings_eval "$DATA100" no "$OUT35/variants_gen" "$OUT35/modelsgen" "$OUT35/eval_gen" variants-gen-v35 \
         silhouette-only full-interior ;;
     gallery-data-v35)  # eval-data-long-v35's two model folders on the same test drawings of the chair, the sofa, the
       # cabinet and the car (two shapes each, mirror averaged as the app runs them; seconds), the per-category bars of
@@ -2164,7 +2157,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --max-samples 390 --threads 2 ;;
     eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
       # silhouette-only first), into OUT35/eval_views
-      drawings100 "$OUT35/variants_views" "$OUT35/modelsviews" "$OUT35/eval_views" variants-views-v35 no \
+      drawings_eval "$DATA100" no "$OUT35/variants_views" "$OUT35/modelsviews" "$OUT35/eval_views" variants-views-v35 \
         silhouette-only-k1 full-interior-k1 ;;
     compare-single-v34)  # overfit-v31 and overfit-sil-v34 (four views) beside the one-view runs, full and silhouette-only
       # (seconds), into OUT34/compare_single with the car's rows; those rows to docs/
