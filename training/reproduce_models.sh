@@ -190,6 +190,17 @@
 #   gallery-data-v35 draws variants-data-long-v35's two predictors' meshes from the same test drawings, side by side.
 #   variants-views-v35 and eval-views-v35: full-interior and silhouette-only with one other view in the loss instead of
 #   three (extra_views 1: the silhouettes carve less of the depth), trained and scored as variants-normal-v34's.
+# A specialist for the legged furniture (issue 16's parts target; legs-v36 runs these in order, into RUNS36 [runs/v36],
+#   OUT36 [out/v36]; nothing shipped unless it says so): data-v36 renders DATA36 [data/legs600v4] (bench, chair and table
+#   shapes 600-1199, their train split at 4 grid views each, as DATA70), DATA36C [data/legs1200v4] (shapes 1200-1249 of
+#   the three, as DATA72: the choice) and DATA36T [data/legs100e4] (DATA2's shapes of the three, val and test splits);
+#   generated-v36 / generated-mirror-v36 the fifth generator's images of DATA36's drawings; import-v36 the twenty-first
+#   pair from git, its predictor as a run; predictor-v36-legs trains that predictor on the three categories alone (the
+#   CPU recipe at V36_LR [2e-4], V36_ITERS [3000], V36_MINUTES [65] at most; resumes); export-v36 writes it beside the
+#   bundled generator; check-legs-v36 scores both pairs on DATA36C through the app's engine (mirror averaged too), and
+#   eval-legs-v36 / eval-legs-side-v36 on DATA36T's test split; gallery-legs-v36 draws both pairs' meshes of the same
+#   test drawings: do the legs come with a category's samples? legs-more-v36 (after it): predictor-v36-legs-more trains
+#   the specialist on as long again (export-v36-more), and the measures run again with it beside the two.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -288,6 +299,12 @@ OUT33=${OUT33:-out/v33}
 OUT34=${OUT34:-out/v34}
 OUT35=${OUT35:-out/v35}
 DATA100=${DATA100:-data/proc100}
+RUNS36=${RUNS36:-runs/v36}
+OUT36=${OUT36:-out/v36}
+DATA36=${DATA36:-data/legs600v4}
+DATA36C=${DATA36C:-data/legs1200v4}
+DATA36T=${DATA36T:-data/legs100e4}
+LEGS=(bench chair table)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -2155,6 +2172,67 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         --variant "full-interior-k1:normal_edges=false,extra_views=1" \
         --variant "silhouette-only-k1:lambda_n=0,extra_views=1" --set iters=2000 --minutes 10 --points 2 \
         --max-samples 390 --threads 2 ;;
+    legs-v36)  # the legged-furniture specialist, every step in order (about 100 min on 2 cores)
+      for s2 in data-v36 generated-v36 generated-mirror-v36 import-v36 predictor-v36-legs export-v36 check-legs-v36 \
+                eval-legs-v36 eval-legs-side-v36 gallery-legs-v36; do step "$s2"; done ;;
+    legs-more-v36)  # after legs-v36: the specialist trained on as long again, then every measure again with it (45 min)
+      for s2 in predictor-v36-legs-more export-v36-more check-legs-v36 eval-legs-v36 eval-legs-side-v36 gallery-legs-v36; do
+        step "$s2"
+      done ;;
+    data-v36)  # DATA36 (training: bench, chair, table shapes 600-1199, train split, 4 grid views each), DATA36C (the
+      # choice: shapes 1200-1249 of the three, as DATA72) and DATA36T (DATA2's shapes of the three, val and test); resume
+      sketchmesh data --source procedural --first-shape 600 --shapes-per-category 600 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA36"
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA36C"
+      sketchmesh data --source procedural --shapes-per-category 100 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --splits val test --workers 2 --out "$DATA36T" ;;
+    generated-v36|generated-mirror-v36)  # the fifth generator's images of DATA36's drawings and of their flipped drawings
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      local name=(--name normals16); [ "${1#generated-mirror-}" != "$1" ] && name=(--name normals16_mirror --mirror)
+      sketchmesh data generated "$DATA36" --models "$OUT8/models_fifth" "${name[@]}" --workers 2 ;;
+    import-v36)  # the twenty-first pair (git TWENTYFIRST [2a2eadb]) into OUT36/models_twentyfirst, its predictor back as a
+      # run (RUNS36/twentyfirst/predictor; batch norms calibrated on DATA36's generated images)
+      models_from_git "${TWENTYFIRST:-2a2eadb}" "$OUT36/models_twentyfirst"
+      [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || \
+        sketchmesh import-models "$OUT36/models_twentyfirst" --out "$RUNS36/twentyfirst" --only predictor --data "$DATA36" --threads 2 ;;
+    predictor-v36-legs)  # the twenty-first's predictor trained on bench, chair and table alone (DATA36) by the CPU recipe
+      # (recipe20) at V36_LR [2e-4] along a new cosine into RUNS36/legs: V36_ITERS [3000], V36_MINUTES [65] at most;
+      # resumes
+      [ -f "$DATA36/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA36: run data-v36 generated-v36 generated-mirror-v36 first" >&2; exit 1; }
+      [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || step import-v36
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/twentyfirst/predictor" "$RUNS36/legs" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    predictor-v36-legs-more)  # predictor-v36-legs's run trained on as long again along a new cosine (the same rate, data
+      # and recipe) into RUNS36/legs_more: does the specialist's gain grow with its samples? V36_ITERS [3000],
+      # V36_MINUTES [65] at most; resumes
+      [ -f "$RUNS36/legs/config.json" ] || step predictor-v36-legs
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/legs" "$RUNS36/legs_more" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    export-v36|export-v36-more)  # predictor-v36-legs's (-more: predictor-v36-legs-more's) run with float16-stored weights
+      # beside the bundled generator: OUT36/models_legs (models_legs_more)
+      local run=legs; [ "$1" = export-v36-more ] && run=legs_more
+      rm -rf "$OUT36/models_$run"
+      sketchmesh export "$RUNS36/$run" -o "$OUT36/models_$run" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT36/models_$run/" ;;
+    check-legs-v36|eval-legs-v36|eval-legs-side-v36)  # the twenty-first pair and the specialist (and its continuation,
+      # once export-v36-more has run) through the app's engine (`eval --models`, plain and +mirror): check-legs on
+      # DATA36C's 4 views of each shape, eval-legs on DATA36T's test split at 12 of each shape's 48 views,
+      # eval-legs-side at its 12 side views (0 degrees); into OUT36/<step>
+      local data=$DATA36T split=test views=(--views 12) more=()
+      [ "$1" = check-legs-v36 ] && { data=$DATA36C; split=train; views=(--views 4); }
+      [ "$1" = eval-legs-side-v36 ] && views=(--elevation 0 --views 12)
+      [ -f "$OUT36/models_legs_more/mesh_predictor.onnx" ] && more=(--models "$OUT36/models_legs_more")
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs" "${more[@]}" --data "$data" \
+        --split "$split" "${views[@]}" --no-retrieval --mirror-average --threads 2 --out "$OUT36/${1%-v36}" ;;
+    gallery-legs-v36)  # three test shapes of each legged category, the twenty-first pair and the specialist (and its
+      # continuation once exported), mirror averaged: OUT36/gallery_<models>.png
+      local m
+      for m in twentyfirst legs legs_more; do
+        [ -f "$OUT36/models_$m/mesh_predictor.onnx" ] || continue
+        sketchmesh gallery --data "$DATA36T" --models "$OUT36/models_$m" --per-category 3 --mirror-average --threads 2 \
+          -o "$OUT36/gallery_$m.png"
+      done ;;
     eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
       # silhouette-only first), into OUT35/eval_views
       drawings_eval "$DATA100" no "$OUT35/variants_views" "$OUT35/modelsviews" "$OUT35/eval_views" variants-views-v35 \
