@@ -201,6 +201,8 @@
 #   eval-legs-v36 / eval-legs-side-v36 on DATA36T's test split; gallery-legs-v36 draws both pairs' meshes of the same
 #   test drawings: do the legs come with a category's samples? legs-more-v36 (after it): predictor-v36-legs-more trains
 #   the specialist on as long again (export-v36-more), and the measures run again with it beside the two.
+#   route-v36: how often the category of the nearest training drawing (a router's first candidate) says legged exactly
+#   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -304,6 +306,8 @@ OUT36=${OUT36:-out/v36}
 DATA36=${DATA36:-data/legs600v4}
 DATA36C=${DATA36C:-data/legs1200v4}
 DATA36T=${DATA36T:-data/legs100e4}
+DATA36L=${DATA36L:-data/lib1200v4}
+DATA36A=${DATA36A:-data/test100e4}
 LEGS=(bench chair table)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
@@ -2233,6 +2237,37 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         sketchmesh gallery --data "$DATA36T" --models "$OUT36/models_$m" --per-category 3 --mirror-average --threads 2 \
           -o "$OUT36/gallery_$m.png"
       done ;;
+    route-v36)  # the router a specialist needs, first measure: how often the category of the nearest training drawing
+      # (the retrieval floor of `eval --models`, searched among DATA36L [data/lib1200v4]: 50 unseen shapes of every
+      # category at 4 grid views) says legged (bench, chair, table) exactly when the drawing is; DATA2's 139 test shapes
+      # of all 13 categories (DATA36A [data/test100e4], the test split at 48 views) at 4 views each, the bundled pair;
+      # into OUT36/route (eval_models_test.json's "retrieved", counted by the python below)
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
+        --views-per-shape 4 --splits train --workers 2 --out "$DATA36L"
+      sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 --splits test \
+        --workers 2 --out "$DATA36A"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --data "$DATA36A" --split test --retrieval-data "$DATA36L" \
+        --threads 2 --out "$OUT36/route"
+      python3 - "$OUT36/route/eval_models_test.json" "${LEGS[@]}" <<'PY'
+import json, sys
+rows = json.load(open(sys.argv[1]))["rows"]
+legs = set(sys.argv[2:])
+n = right = cat_right = legged = sent = 0
+for r in rows:
+    for v in r["per_view"]:
+        got = v.get("retrieved")
+        if not got:
+            continue
+        rc = got.split("/")[0]
+        n += 1
+        cat_right += rc == r["category"]
+        right += (rc in legs) == (r["category"] in legs)
+        legged += r["category"] in legs
+        sent += rc in legs
+print(f"{n} test drawings ({legged} legged): category of the nearest training drawing right for {cat_right / n:.3f}; "
+      f"legged-or-not right for {right / n:.3f}; {sent} sent to the specialist")
+PY
+      ;;
     eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
       # silhouette-only first), into OUT35/eval_views
       drawings_eval "$DATA100" no "$OUT35/variants_views" "$OUT35/modelsviews" "$OUT35/eval_views" variants-views-v35 \
