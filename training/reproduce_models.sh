@@ -202,7 +202,8 @@
 #   test drawings: do the legs come with a category's samples? legs-more-v36 (after it): predictor-v36-legs-more trains
 #   the specialist on as long again (export-v36-more), and the measures run again with it beside the two.
 #   route-v36: how often the category of the nearest training drawing (a router's first candidate) says legged exactly
-#   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]).
+#   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]); route-eval-v36 the 13-category mean on
+#   those drawings with the specialist behind that router (and routed perfectly, a ceiling).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2266,6 +2267,31 @@ for r in rows:
         sent += rc in legs
 print(f"{n} test drawings ({legged} legged): category of the nearest training drawing right for {cat_right / n:.3f}; "
       f"legged-or-not right for {right / n:.3f}; {sent} sent to the specialist")
+PY
+      ;;
+    route-eval-v36)  # the specialist behind route-v36's router, on the same 556 test drawings: the twenty-first pair and
+      # predictor-v36-legs-more's specialist both through the app's engine, mirror averaged, with the retrieval that
+      # routes; each drawing then scored by the specialist when its nearest training drawing is a bench, chair or table
+      # (and, as a ceiling, when the drawing truly is); means over the 13 categories; into OUT36/route_eval
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs_more" --data "$DATA36A" --split test \
+        --retrieval-data "$DATA36L" --mirror-average --threads 2 --out "$OUT36/route_eval"
+      python3 - "$OUT36/route_eval/eval_models_test.json" "${LEGS[@]}" <<'PY'
+import json, sys
+from collections import defaultdict
+rows = json.load(open(sys.argv[1]))["rows"]
+legs = set(sys.argv[2:])
+base, spec = "models_twentyfirst +mirror", "models_legs_more +mirror"
+ways = {"twenty-first": lambda cat, rc: base, "routed": lambda cat, rc: spec if rc in legs else base,
+        "routed perfectly": lambda cat, rc: spec if cat in legs else base}
+for name, pick in ways.items():
+    per_cat = defaultdict(list)
+    for r in rows:
+        views = [v["iou"][pick(r["category"], v["retrieved"].split("/")[0])] for v in r["per_view"]]
+        per_cat[r["category"]].append(sum(views) / len(views))
+    cats = {c: sum(x) / len(x) for c, x in per_cat.items()}
+    legged = sum(cats[c] for c in legs) / len(legs)
+    print(f"{name}: mean of {len(cats)} categories {sum(cats.values()) / len(cats):.4f} (legged {legged:.4f}); "
+          + ", ".join(f"{c} {v:.3f}" for c, v in sorted(cats.items())))
 PY
       ;;
     eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
