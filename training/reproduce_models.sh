@@ -202,8 +202,8 @@
 #   test drawings: do the legs come with a category's samples? legs-more-v36 (after it): predictor-v36-legs-more trains
 #   the specialist on as long again (export-v36-more), and the measures run again with it beside the two.
 #   route-v36: how often the category of the nearest training drawing (a router's first candidate) says legged exactly
-#   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]); route-eval-v36 the 13-category mean on
-#   those drawings with the specialist behind that router (and routed perfectly, a ceiling).
+#   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]), and the 13-category mean on those
+#   drawings with the specialist behind that router (and routed perfectly, a ceiling).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2238,60 +2238,43 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         sketchmesh gallery --data "$DATA36T" --models "$OUT36/models_$m" --per-category 3 --mirror-average --threads 2 \
           -o "$OUT36/gallery_$m.png"
       done ;;
-    route-v36)  # the router a specialist needs, first measure: how often the category of the nearest training drawing
-      # (the retrieval floor of `eval --models`, searched among DATA36L [data/lib1200v4]: 50 unseen shapes of every
-      # category at 4 grid views) says legged (bench, chair, table) exactly when the drawing is; DATA2's 139 test shapes
-      # of all 13 categories (DATA36A [data/test100e4], the test split at 48 views) at 4 views each, the bundled pair;
-      # into OUT36/route (eval_models_test.json's "retrieved", counted by the python below)
+    route-v36)  # the router a specialist needs, measured: the category of the nearest training drawing (the retrieval
+      # floor of `eval --models`, searched among DATA36L [data/lib1200v4]: 50 unseen shapes of every category at 4 grid
+      # views) as the router, on DATA2's 139 test shapes of all 13 categories (DATA36A [data/test100e4], the test split
+      # at 48 views) at 4 views each. One eval of the twenty-first pair and predictor-v36-legs-more's specialist through
+      # the app's engine, mirror averaged, with that retrieval, into OUT36/route; the python below counts how often the
+      # router says legged (bench, chair, table) exactly when the drawing is, then scores each drawing by the specialist
+      # where the router sends it (and, as a ceiling, where the drawing truly is legged): means over the 13 categories
+      [ -f "$OUT36/models_legs_more/mesh_predictor.onnx" ] || step export-v36-more
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA36L"
       sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 --splits test \
         --workers 2 --out "$DATA36A"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --data "$DATA36A" --split test --retrieval-data "$DATA36L" \
-        --threads 2 --out "$OUT36/route"
-      python3 - "$OUT36/route/eval_models_test.json" "${LEGS[@]}" <<'PY'
-import json, sys
-rows = json.load(open(sys.argv[1]))["rows"]
-legs = set(sys.argv[2:])
-n = right = cat_right = legged = sent = 0
-for r in rows:
-    for v in r["per_view"]:
-        got = v.get("retrieved")
-        if not got:
-            continue
-        rc = got.split("/")[0]
-        n += 1
-        cat_right += rc == r["category"]
-        right += (rc in legs) == (r["category"] in legs)
-        legged += r["category"] in legs
-        sent += rc in legs
-print(f"{n} test drawings ({legged} legged): category of the nearest training drawing right for {cat_right / n:.3f}; "
-      f"legged-or-not right for {right / n:.3f}; {sent} sent to the specialist")
-PY
-      ;;
-    route-eval-v36)  # the specialist behind route-v36's router, on the same 556 test drawings: the twenty-first pair and
-      # predictor-v36-legs-more's specialist both through the app's engine, mirror averaged, with the retrieval that
-      # routes; each drawing then scored by the specialist when its nearest training drawing is a bench, chair or table
-      # (and, as a ceiling, when the drawing truly is); means over the 13 categories; into OUT36/route_eval
       sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs_more" --data "$DATA36A" --split test \
-        --retrieval-data "$DATA36L" --mirror-average --threads 2 --out "$OUT36/route_eval"
-      python3 - "$OUT36/route_eval/eval_models_test.json" "${LEGS[@]}" <<'PY'
+        --retrieval-data "$DATA36L" --mirror-average --threads 2 --out "$OUT36/route"
+      python3 - "$OUT36/route/eval_models_test.json" "${LEGS[@]}" <<'PY'
 import json, sys
 from collections import defaultdict
 rows = json.load(open(sys.argv[1]))["rows"]
 legs = set(sys.argv[2:])
+views = [(r["category"], v["retrieved"].split("/")[0], v) for r in rows for v in r["per_view"]]
+n = len(views)
+legged = sum(cat in legs for cat, _, _ in views)
+print(f"{n} test drawings ({legged} legged): category of the nearest training drawing right for "
+      f"{sum(cat == rc for cat, rc, _ in views) / n:.3f}; legged-or-not right for "
+      f"{sum((cat in legs) == (rc in legs) for cat, rc, _ in views) / n:.3f}; "
+      f"{sum(rc in legs for _, rc, _ in views)} sent to the specialist")
 base, spec = "models_twentyfirst +mirror", "models_legs_more +mirror"
 ways = {"twenty-first": lambda cat, rc: base, "routed": lambda cat, rc: spec if rc in legs else base,
         "routed perfectly": lambda cat, rc: spec if cat in legs else base}
 for name, pick in ways.items():
     per_cat = defaultdict(list)
     for r in rows:
-        views = [v["iou"][pick(r["category"], v["retrieved"].split("/")[0])] for v in r["per_view"]]
-        per_cat[r["category"]].append(sum(views) / len(views))
+        ious = [v["iou"][pick(r["category"], v["retrieved"].split("/")[0])] for v in r["per_view"]]
+        per_cat[r["category"]].append(sum(ious) / len(ious))
     cats = {c: sum(x) / len(x) for c, x in per_cat.items()}
-    legged = sum(cats[c] for c in legs) / len(legs)
-    print(f"{name}: mean of {len(cats)} categories {sum(cats.values()) / len(cats):.4f} (legged {legged:.4f}); "
-          + ", ".join(f"{c} {v:.3f}" for c, v in sorted(cats.items())))
+    print(f"{name}: mean of {len(cats)} categories {sum(cats.values()) / len(cats):.4f} (legged "
+          f"{sum(cats[c] for c in legs) / len(legs):.4f}); " + ", ".join(f"{c} {v:.3f}" for c, v in sorted(cats.items())))
 PY
       ;;
     eval-views-v35)  # variants-views-v35's two predictors scored as eval-data-v35 scores its (DATA100's test drawings,
