@@ -149,6 +149,18 @@ exported mesh is smoothed just there until it does not (README, "Repairing folds
 which would cost tens of milliseconds a stroke on folded meshes."""
 
 
+def prediction_message(prediction) -> str:
+    """The status bar's line for a new mesh: its size, what the model folder's router read the drawing as (and the
+    specialist predictor it chose), and any warning."""
+    m = prediction.mesh
+    text = f"Mesh: {m.num_vertices} vertices, {m.num_faces} faces"
+    category = getattr(prediction, "category", None)
+    if category:
+        route = getattr(prediction, "route", None)
+        text += f"; read as {category}" + (f", shaped by {route}" if route else "")
+    return text + "".join(f" ({w})" for w in getattr(prediction, "warnings", ()))
+
+
 def format_timings(timings_ms: dict[str, float], cached: bool = False) -> str:
     """One status-bar line: ``generator 12.3 ms · predictor 2.1 ms · total 15.0 ms``."""
     parts = [f"{k} {float(v):.1f} ms" for k, v in timings_ms.items()]
@@ -603,9 +615,7 @@ class MainWindow(QMainWindow):
         if normals is not None:
             self.normal_panel.set_image(normals if isinstance(normals, QImage) else _rgb_to_qimage(np.asarray(normals)))
         self.timing_label.setText(format_timings(dict(prediction.timings_ms), bool(getattr(prediction, "cached", False))))
-        m = prediction.mesh
-        warnings = getattr(prediction, "warnings", ())
-        self.show_message(f"Mesh: {m.num_vertices} vertices, {m.num_faces} faces" + "".join(f" ({w})" for w in warnings))
+        self.show_message(prediction_message(prediction))
         self._update_actions()
         self.meshUpdated.emit(request_id)
 

@@ -13,6 +13,14 @@ Mesh predictor (``mesh_predictor.onnx``)
     outputs ``local_offset`` (N, V, 3) and ``global_offset`` (N, 3) float32; the mesh in the
            view frame is ``template_vertices + local_offset + global_offset[:, None]``.
 
+Router (``router.onnx``, optional)
+    input  ``normals`` (N, 3, 64, 64) as the mesh predictor's; output ``probabilities`` (N, K) float32,
+           a softmax over the ``categories`` of its metadata (a JSON list of K names). Its metadata
+           ``routes`` (a JSON object: specialist file name -> list of categories) names other mesh
+           predictors in the same folder, and ``route_threshold`` (a float in (0, 1)): a drawing goes to
+           the specialist whose categories' summed probability is largest and above the threshold, every
+           other drawing to ``mesh_predictor.onnx``. A folder without ``router.onnx`` routes nothing.
+
 Metadata (``metadata_props`` of each model, all strings)
     ``sketchmesh_format`` (= FORMAT_VERSION), ``sketchmesh_role`` ("generator" or
     "mesh_predictor"), ``code_version``, ``config`` (JSON of the resolved training config),
@@ -31,6 +39,7 @@ CONVENTIONS_ID = "sketchmesh-conventions-1"
 
 GENERATOR_FILE = "generator.onnx"
 PREDICTOR_FILE = "mesh_predictor.onnx"
+ROUTER_FILE = "router.onnx"
 
 SKETCH_SIZE = 256
 PREDICTOR_INPUT_SIZE = 64
@@ -40,9 +49,12 @@ GENERATOR_OUTPUT = "normals"
 PREDICTOR_INPUT = "normals"
 PREDICTOR_OUTPUT_LOCAL = "local_offset"
 PREDICTOR_OUTPUT_GLOBAL = "global_offset"
+ROUTER_INPUT = "normals"
+ROUTER_OUTPUT = "probabilities"
 
 ROLE_GENERATOR = "generator"
 ROLE_PREDICTOR = "mesh_predictor"
+ROLE_ROUTER = "router"
 
 META_FORMAT = "sketchmesh_format"
 META_ROLE = "sketchmesh_role"
@@ -54,6 +66,9 @@ META_TEMPLATE_RADIUS = "template_radius"
 META_BASE_CHANNELS = "base_channels"
 META_GENERATOR_ARCH = "generator_arch"
 META_QUANTIZATION = "quantization"
+META_CATEGORIES = "categories"
+META_ROUTES = "routes"
+META_ROUTE_THRESHOLD = "route_threshold"
 PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,
 or with both networks quantised (``sketchmesh bench engine`` / ``bench tradeoff``)."""

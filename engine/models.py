@@ -1,6 +1,6 @@
 """ONNX model loading and validation against :mod:`engine.contract`.
 
-Nothing is loaded at import time. :func:`load_generator` and :func:`load_predictor` create an
+Nothing is loaded at import time. :func:`load_generator`, :func:`load_predictor` and :func:`load_router` create an
 onnxruntime session (CPU, ``intra_op_num_threads`` = physical cores or ``SKETCHMESH_THREADS``,
 one inter-op thread, spinning off) and check, once, the input/output names, ranks and static dimensions and the
 required metadata. Every problem is an :class:`engine.errors.ModelError` naming the file and
@@ -9,6 +9,7 @@ what was wrong.
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,13 +100,16 @@ class LoadedModel:
 
     Attributes:
         path: the .onnx file.
-        role: ``"generator"`` or ``"mesh_predictor"``.
+        role: ``"generator"``, ``"mesh_predictor"`` or ``"router"``.
         session: the onnxruntime.InferenceSession.
         metadata: the model's metadata_props.
         input_name: the single input's name.
         output_names: output names in the contract's order.
         template_level: icosphere level (predictor only, else None).
         template_radius: template radius (predictor only, else None).
+        categories: the router's output order (router only, else None).
+        routes: specialist file name -> its categories (router only, else None).
+        route_threshold: summed probability above which a drawing goes to a specialist (router only).
     """
 
     path: Path
@@ -116,6 +120,9 @@ class LoadedModel:
     output_names: list[str]
     template_level: int | None = None
     template_radius: float | None = None
+    categories: list[str] | None = None
+    routes: dict[str, list[str]] | None = None
+    route_threshold: float | None = None
     input_shapes: dict[str, list] = field(default_factory=dict)
     output_shapes: dict[str, list] = field(default_factory=dict)
 
@@ -129,6 +136,8 @@ class LoadedModel:
             "outputs": {k: [d if isinstance(d, int) else str(d) for d in v] for k, v in self.output_shapes.items()},
             "template_level": self.template_level,
             "template_radius": self.template_radius,
+            **({"categories": list(self.categories), "routes": {k: list(v) for k, v in self.routes.items()},
+                "route_threshold": self.route_threshold} if self.role == C.ROLE_ROUTER else {}),
             "file_bytes": self.path.stat().st_size if self.path.exists() else None,
         }
 
@@ -273,3 +282,66 @@ def load_predictor(path: str | os.PathLike, threads: int | None = None) -> Loade
         path, C.ROLE_PREDICTOR, sess, meta, C.PREDICTOR_INPUT, [C.PREDICTOR_OUTPUT_LOCAL, C.PREDICTOR_OUTPUT_GLOBAL],
         template_level=level, template_radius=radius, input_shapes=ins, output_shapes=outs,
     )
+
+
+def router_path(models_dir: Path) -> Path | None:
+    """``router.onnx`` in a model folder, or None when the folder routes nothing."""
+    p = Path(models_dir) / C.ROUTER_FILE
+    return p if p.is_file() else None
+
+
+def _json_meta(path: Path, meta: dict[str, str], key: str):
+    if key not in meta:
+        raise ModelError(f"{path}: router metadata lacks {key!r}")
+    try:
+        return json.loads(meta[key])
+    except ValueError:
+        raise ModelError(f"{path}: router metadata {key!r} is not JSON: {meta[key][:80]!r}") from None
+
+
+def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedModel:
+    """Load and validate ``router.onnx``: ``normals`` (N, 3, 64, 64) -> ``probabilities`` (N, K), with its
+    ``categories``, ``routes`` and ``route_threshold`` metadata (:mod:`engine.contract`). Every specialist
+    file it names must be in the same folder (it is loaded only when a drawing is routed to it).
+
+    Raises:
+        ModelError: missing/corrupt file, wrong names, ranks or metadata, or a specialist file that is missing.
+    """
+    path = Path(path)
+    sess = _open_session(path, threads or default_threads())
+    meta = dict(sess.get_modelmeta().custom_metadata_map)
+    _check_metadata(path, meta, C.ROLE_ROUTER)
+    cats = _json_meta(path, meta, C.META_CATEGORIES)
+    if (not isinstance(cats, list) or len(cats) < 2 or len(set(cats)) != len(cats)
+            or not all(isinstance(c, str) and c for c in cats)):
+        raise ModelError(f"{path}: router categories must be a list of two or more distinct names, got {cats!r}")
+    routes = _json_meta(path, meta, C.META_ROUTES)
+    if not isinstance(routes, dict) or not routes:
+        raise ModelError(f"{path}: router routes must name at least one specialist file, got {routes!r}")
+    seen: set = set()
+    for name, group in routes.items():
+        if (not isinstance(name, str) or Path(name).name != name or not name.endswith(".onnx")
+                or name in (C.GENERATOR_FILE, C.PREDICTOR_FILE, C.ROUTER_FILE)):
+            raise ModelError(f"{path}: router route {name!r} must be another .onnx file name in the same folder")
+        if not isinstance(group, list) or not group or not all(c in cats for c in group) or seen & set(group):
+            raise ModelError(f"{path}: route {name!r} must list categories of the router's, each in one route; "
+                             f"got {group!r}")
+        seen |= set(group)
+        if not (path.parent / name).is_file():
+            raise ModelError(f"{path}: the router sends drawings to {name}, which is not in {path.parent}")
+    try:
+        threshold = float(meta.get(C.META_ROUTE_THRESHOLD, ""))
+    except ValueError:
+        threshold = float("nan")
+    if not 0.0 < threshold < 1.0:
+        raise ModelError(f"{path}: router metadata {C.META_ROUTE_THRESHOLD!r} must be a number in (0, 1), "
+                         f"got {meta.get(C.META_ROUTE_THRESHOLD)!r}")
+    ins, outs = _io(sess, path)
+    _check_names(path, "input", ins, [C.ROUTER_INPUT])
+    _check_names(path, "output", outs, [C.ROUTER_OUTPUT])
+    s = C.PREDICTOR_INPUT_SIZE
+    _check_static(path, f"input {C.ROUTER_INPUT!r}", ins[C.ROUTER_INPUT], [None, 3, s, s])
+    _check_static(path, f"output {C.ROUTER_OUTPUT!r}", outs[C.ROUTER_OUTPUT], [None, len(cats)])
+    return LoadedModel(path, C.ROLE_ROUTER, sess, meta, C.ROUTER_INPUT, [C.ROUTER_OUTPUT], categories=list(cats),
+                       routes={k: list(v) for k, v in routes.items()}, route_threshold=threshold,
+                       input_shapes=ins, output_shapes=outs)

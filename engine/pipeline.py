@@ -5,14 +5,18 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
 1. ``preprocess``  strokes / image file / raster -> framed (256, 256) raster (:mod:`engine.preprocess`);
 2. ``generator``   (1, 1, 256, 256) -> normal image (1, 3, 256, 256) in [0, 1];
 3. ``downsample``  area-average to (1, 3, 64, 64) (``cv2.INTER_AREA`` on the HWC image);
-4. ``predictor``   -> ``local_offset`` (1, V, 3), ``global_offset`` (1, 3);
+4. ``predictor``   -> ``local_offset`` (1, V, 3), ``global_offset`` (1, 3); where the model folder has a
+   ``router.onnx`` (:mod:`engine.contract`), it first reads the same 64 x 64 image and picks the mesh
+   predictor: a specialist when it is sure enough the drawing is of that specialist's categories, else
+   ``mesh_predictor.onnx`` (its time counts here; a specialist is loaded on the first drawing sent to it);
 5. ``assemble``    template vertices + local + global -> :class:`engine.mesh.Mesh` in the view
    frame (:mod:`engine.camera`);
 
    with ``mirror_average`` on, stages 2-5 run a second time on the drawing flipped left to right,
    and the two meshes are averaged vertex by vertex, the second mirrored back
    (:func:`engine.icosphere.mirror_average`): each stage's time is the sum of its two runs (the
-   averaging counts in ``assemble``), the normal image kept is the plain drawing's;
+   averaging counts in ``assemble``), the normal image kept is the plain drawing's, and both runs use the
+   predictor the plain drawing was routed to;
 6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off;
 7. ``repair``      optional (``repair_folds``): where the final mesh crosses itself, smooth just there until it
@@ -43,7 +47,16 @@ from engine import contract as C
 from engine.errors import EmptySketchError, ModelError, SketchInputError
 from engine.icosphere import icosphere, mirror_average
 from engine.mesh import Mesh
-from engine.models import LoadedModel, default_threads, load_generator, load_predictor, model_paths, resolve_models_dir
+from engine.models import (
+    LoadedModel,
+    default_threads,
+    load_generator,
+    load_predictor,
+    load_router,
+    model_paths,
+    resolve_models_dir,
+    router_path,
+)
 from engine.preprocess import rasterize_strokes, sketch_raster_from_image
 from engine.refine import MAX_STEPS, refine_prediction
 from engine.strokes import Stroke
@@ -74,6 +87,9 @@ class Prediction:
             the unrefined mesh says why); empty when all went as asked.
         mirror_average: whether the mesh is the average with the flipped drawing's.
         repair_folds: whether self-intersections of the final mesh were repaired.
+        route: the specialist predictor file the router sent the drawing to, or None (``mesh_predictor.onnx``,
+            also when the folder has no router).
+        category: the router's most likely category of the drawing, or None without a router.
     """
 
     mesh: Mesh
@@ -84,12 +100,16 @@ class Prediction:
     warnings: tuple[str, ...] = ()
     mirror_average: bool = False
     repair_folds: bool = False
+    route: str | None = None
+    category: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
 class _Entry:
     mesh: Mesh
     normals_nchw: np.ndarray  # (1, 3, 256, 256) float32 generator output, read-only; HWC only on request
+    route: str | None = None
+    category: str | None = None
     refined: dict = field(default_factory=dict)  # steps -> engine.refine.RefineResult, under the cache lock
     repaired: dict = field(default_factory=dict)  # steps -> engine.postprocess.RepairResult, under the cache lock
 
@@ -223,6 +243,8 @@ class SketchEngine:
         self._cache: OrderedDict[str, _Entry] = OrderedDict()
         self._generator: LoadedModel | None = None
         self._predictor: LoadedModel | None = None
+        self._router: LoadedModel | None = None
+        self._specialists: dict[str, LoadedModel] = {}
         self._load_lock = threading.Lock()
         self._run_lock = threading.Lock()
         self._cache_lock = threading.Lock()
@@ -264,7 +286,8 @@ class SketchEngine:
         self._repair_folds = _check_flag("repair_folds", on)
 
     def load(self) -> None:
-        """Create and validate both sessions now (otherwise done on the first prediction).
+        """Create and validate the sessions now (otherwise done on the first prediction): both networks and, when
+        the folder has one, the router (its specialists are checked to exist and loaded when first routed to).
 
         Raises:
             ModelError: missing folder/files, corrupt or non-conforming models.
@@ -276,7 +299,39 @@ class SketchEngine:
             import engine.postprocess  # noqa: F401  refinement's self-intersection check: its scipy import stays out of the first prediction
             generator = load_generator(gen_path, self._threads)
             predictor = load_predictor(pred_path, self._threads)
+            rpath = router_path(self._models_dir)
+            self._router = load_router(rpath, self._threads) if rpath is not None else None
             self._generator, self._predictor = generator, predictor
+
+    def _specialist(self, name: str) -> LoadedModel:
+        """The router's specialist ``name``, loaded and checked against the main predictor's template on first use."""
+        with self._load_lock:
+            model = self._specialists.get(name)
+            if model is None:
+                model = load_predictor(self._models_dir / name, self._threads)
+                main = self._predictor
+                if (model.template_level, model.template_radius) != (main.template_level, main.template_radius):
+                    raise ModelError(
+                        f"{model.path}: template level {model.template_level} radius {model.template_radius} differs "
+                        f"from {main.path.name}'s ({main.template_level}, {main.template_radius}); a specialist must "
+                        "deform the same sphere")
+                self._specialists[name] = model
+            return model
+
+    def _route(self, small: np.ndarray) -> tuple[str | None, str]:
+        """(specialist file or None, most likely category) of a (1, 3, 64, 64) predictor input; call under _run_lock."""
+        router = self._router
+        (probs,) = router.session.run([C.ROUTER_OUTPUT], {router.input_name: small})
+        p = np.asarray(probs, np.float64).reshape(-1)
+        if p.shape != (len(router.categories),) or not np.all(np.isfinite(p)):
+            raise ModelError(f"{router.path}: router output must be {len(router.categories)} finite probabilities, "
+                             f"got shape {np.shape(probs)}")
+        best, best_p = None, router.route_threshold
+        for name, group in router.routes.items():
+            q = float(sum(p[router.categories.index(c)] for c in group))
+            if q > best_p:
+                best, best_p = name, q
+        return best, router.categories[int(np.argmax(p))]
 
     @property
     def is_loaded(self) -> bool:
@@ -292,6 +347,7 @@ class SketchEngine:
             "predictor": self._predictor.info(),
             "template_level": self._predictor.template_level,
             "template_radius": self._predictor.template_radius,
+            "router": self._router.info() if self._router is not None else None,
         }
 
     def clear_cache(self) -> None:
@@ -301,7 +357,7 @@ class SketchEngine:
     def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool) -> _Entry:
         gen, pred = self._generator, self._predictor
         stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble"), 0.0)
-        meshes, kept = [], None
+        meshes, kept, route, category = [], None, None, None
         for flip in (False, True) if mirror else (False,):
             x = (raster[:, ::-1] if flip else raster)[None, None].astype(np.float32)
             with self._run_lock:
@@ -316,6 +372,10 @@ class SketchEngine:
                 normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
                 small = downsample_normals(normals)
                 t2 = time.perf_counter()
+                if self._router is not None and not flip:
+                    route, category = self._route(small)
+                    if route is not None:  # the load lock is never held while waiting for the run lock
+                        pred = self._specialist(route)
                 local, glob = pred.session.run(pred.output_names, {pred.input_name: small})
                 t3 = time.perf_counter()
             meshes.append(assemble_mesh(local, glob, pred.template_level, pred.template_radius))
@@ -330,7 +390,7 @@ class SketchEngine:
             stages["assemble"] += (time.perf_counter() - t0) * 1e3
         kept.setflags(write=False)
         timings.update(stages)
-        return _Entry(mesh, kept)
+        return _Entry(mesh, kept, route, category)
 
     def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:
         """Predict a mesh from a sketch.
@@ -412,4 +472,6 @@ class SketchEngine:
             warnings=warnings,
             mirror_average=mirror,
             repair_folds=repair,
+            route=entry.route,
+            category=entry.category,
         )

@@ -14,7 +14,7 @@ models:
 Both carry all of :data:`engine.contract.REQUIRED_METADATA` plus the role-specific keys.
 Opset 17, IR version 8 (loadable by every onnxruntime >= 1.14).
 
-Public helpers: :func:`write_fixture_models`, :func:`make_generator`, :func:`make_predictor`,
+Public helpers: :func:`write_fixture_models`, :func:`make_generator`, :func:`make_predictor`, :func:`make_router`,
 :func:`write_corrupt_model`, :func:`write_wrong_shape_generator`, :func:`write_model`.
 """
 
@@ -157,6 +157,52 @@ def make_predictor(
     meta.update(metadata or {})
     for k in drop_metadata:
         meta.pop(k, None)
+    return _finish(graph, meta)
+
+
+def make_router(
+    probabilities,
+    categories=("bench", "car", "chair"),
+    routes: dict | None = None,
+    threshold: float = 0.9,
+    *,
+    metadata: dict[str, str] | None = None,
+    drop_metadata: tuple[str, ...] = (),
+) -> onnx.ModelProto:
+    """A router whose ``probabilities`` are fixed: softmax of log(``probabilities``) whatever the image
+    (the input is pooled and multiplied by zero, so the graph still reads it).
+
+    Args:
+        probabilities: (K,) the output for every drawing (NaN entries make a broken router).
+        categories, routes, threshold: the metadata (routes default: mesh_predictor_legged.onnx serves
+            bench and chair).
+    """
+    p = np.asarray(probabilities, np.float64)
+    k = len(p)
+    logits = np.log(np.where(p > 0, p, 1e-30)).astype(np.float32)
+    logits[np.isnan(p)] = np.nan
+    nodes = [
+        helper.make_node("GlobalAveragePool", [C.ROUTER_INPUT], ["pooled"]),
+        helper.make_node("Flatten", ["pooled"], ["flat"], axis=1),
+        helper.make_node("Gemm", ["flat", "W", "B"], ["logits"]),
+        helper.make_node("Softmax", ["logits"], [C.ROUTER_OUTPUT], axis=1),
+    ]
+    s = C.PREDICTOR_INPUT_SIZE
+    graph = helper.make_graph(
+        nodes,
+        "fixture_router",
+        [helper.make_tensor_value_info(C.ROUTER_INPUT, TensorProto.FLOAT, ["N", 3, s, s])],
+        [helper.make_tensor_value_info(C.ROUTER_OUTPUT, TensorProto.FLOAT, ["N", k])],
+        initializer=[numpy_helper.from_array(np.zeros((3, k), np.float32), "W"), numpy_helper.from_array(logits, "B")],
+    )
+    meta = _metadata(C.ROLE_ROUTER, **{
+        C.META_CATEGORIES: json.dumps(list(categories)),
+        C.META_ROUTES: json.dumps(routes if routes is not None else {"mesh_predictor_legged.onnx": ["bench", "chair"]}),
+        C.META_ROUTE_THRESHOLD: repr(threshold),
+    })
+    meta.update(metadata or {})
+    for key in drop_metadata:
+        meta.pop(key, None)
     return _finish(graph, meta)
 
 

@@ -309,6 +309,19 @@ def test_real_engine_on_fixture_models_and_engine_errors_in_status_bar(qtbot, ma
     assert w.engine is not working and w.engine.is_loaded and "Model: other_models" in w.status_text()
 
 
+def test_a_routed_model_folder_says_what_it_read_the_drawing_as(qtbot, make_window, tmp_path):
+    """A folder with a router: the mesh comes from the specialist it picks, and the status bar says so."""
+    from onnx_fixtures import make_predictor, make_router, write_model
+
+    models = write_fixture_models(tmp_path / "models")
+    write_model(make_predictor(3, seed=7), models / "mesh_predictor_legged.onnx")
+    write_model(make_router([0.02, 0.03, 0.95]), models / "router.onnx")
+    w = make_window(engine_factory=None, models_dir=models)
+    _draw_and_wait(qtbot, w, line_points(60, 80, 300, 300))
+    assert w.last_prediction.route == "mesh_predictor_legged.onnx"
+    assert "read as chair, shaped by mesh_predictor_legged.onnx" in w.status_text()
+
+
 def test_keyboard_shortcuts_undo_redo(qtbot, make_window):
     w = make_window(FakeEngine())
     draw_stroke(w.canvas, line_points(60, 80, 300, 300))

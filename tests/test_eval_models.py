@@ -269,6 +269,29 @@ def test_mirror_average_adds_a_row_per_folder_scored_as_the_engine_with_it_on(wo
         assert view["iou"][label] == pytest.approx(_world_iou(pred.mesh, rot, gt), abs=1e-12)
 
 
+def test_mirror_only_scores_the_app_default_alone_and_a_routed_folder_records_its_routes(world, tmp_path):
+    """`--mirror-only`: one 'LABEL +mirror' column per folder and no plain one; a folder with router.onnx (a fixed
+    router that is sure of 'bench') scores the specialist's meshes and says, per drawing, where it sent them."""
+    from onnx_fixtures import make_predictor, make_router, write_model
+
+    routed = tmp_path / "routed"
+    shutil.copytree(world["tiny"], routed)
+    write_model(make_predictor(3, seed=7), routed / "mesh_predictor_legged.onnx")
+    write_model(make_router([0.96, 0.02, 0.02]), routed / "router.onnx")
+    out = tmp_path / "r.json"
+    assert main(["eval", "--models", str(world["tiny"]), "--models", str(routed), "--mirror-only", "--data",
+                 str(world["data"]), "--split", "all", "--no-retrieval", "--threads", "1", "--quiet", "--out",
+                 str(tmp_path), "--json", str(out)]) == 0
+    res = json.loads(out.read_text())
+    _, view, sketch, rot, gt = _brick_view(world, res, 0)
+    assert set(view["iou"]) == {"tiny +mirror", "routed +mirror"}
+    assert view["routes"] == {"routed +mirror": {"route": "mesh_predictor_legged.onnx", "category": "bench"}}
+    for label, folder in (("tiny +mirror", world["tiny"]), ("routed +mirror", routed)):
+        pred = SketchEngine(folder, threads=1, cache_size=0, mirror_average=True).predict(sketch)
+        assert view["iou"][label] == pytest.approx(_world_iou(pred.mesh, rot, gt), abs=1e-12)
+    assert view["iou"]["tiny +mirror"] != view["iou"]["routed +mirror"]  # the specialist's mesh is another one
+
+
 @pytest.mark.parametrize("path", ["image", "canvas"])
 def test_sketch_path_feeds_the_engine_the_drawing_as_that_app_path_makes_it(world, tmp_path, path):
     """`--sketch-path image`: the stored drawing through the engine's image-file preprocessing; `canvas`: its

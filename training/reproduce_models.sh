@@ -204,6 +204,12 @@
 #   route-v36: how often the category of the nearest training drawing (a router's first candidate) says legged exactly
 #   when a test drawing is (DATA36L [data/lib1200v4], DATA36A [data/test100e4]), and the 13-category mean on those
 #   drawings with the specialist behind that router (and routed perfectly, a ceiling).
+# A router for the specialist (issue 16; RUNS37 [runs/v37], OUT37 [out/v37]): data-v37 renders DATA37 [data/route1300v4]
+#   (shapes 1300-1549 of all 13 categories, train split, 4 grid views each) and the fifth generator's images of its
+#   drawings and of DATA36L's; router-v37 trains the category router on them (`sketchmesh router train`) and scores it on
+#   DATA36L; routed-v37 puts the bundled pair, legs-more-v36's specialist and the router in one model folder;
+#   eval-route-{clean,side,strong}-v37 score that folder beside the bundled pair on every test sketch of the case as the
+#   app runs them (route-all-v37 runs these five in order).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -310,6 +316,9 @@ DATA36T=${DATA36T:-data/legs100e4}
 DATA36L=${DATA36L:-data/lib1200v4}
 DATA36A=${DATA36A:-data/test100e4}
 LEGS=(bench chair table)
+RUNS37=${RUNS37:-runs/v37}
+OUT37=${OUT37:-out/v37}
+DATA37=${DATA37:-data/route1300v4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -353,6 +362,38 @@ drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants fold
   sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
+route_summary() {  # $1 an eval JSON of the bundled pair and a routed folder (mirror only): how often the router sent a
+  # legged drawing (LEGS) to the specialist and another one, its category accuracy, and both 13-category means with the
+  # paired difference (standard error over the test shapes)
+  python3 - "$1" "${LEGS[@]}" <<'PY'
+import json, sys
+from collections import defaultdict
+res = json.load(open(sys.argv[1])); legs = set(sys.argv[2:])
+base, routed = res["columns"][0], res["columns"][1]
+views = [(r["category"], v) for r in res["rows"] for v in r["per_view"]]
+n, sent = len(views), [(cat, v["routes"][routed]) for cat, v in views]
+leg = sum(c in legs for c, _ in sent)
+print(f"{n} drawings ({leg} legged): category right {sum(c == r['category'] for c, r in sent) / n:.3f}; sent to the "
+      f"specialist: {sum(c in legs and r['route'] is not None for c, r in sent)} of {leg} legged, "
+      f"{sum(c not in legs and r['route'] is not None for c, r in sent)} of {n - leg} others "
+      f"({', '.join(sorted(c for c, r in sent if c not in legs and r['route'] is not None)) or 'none'})")
+per = defaultdict(lambda: defaultdict(list))
+for r in res["rows"]:
+    for col in (base, routed):
+        per[col][r["category"]].append(r["iou"][col])
+means = {col: {c: sum(x) / len(x) for c, x in per[col].items()} for col in (base, routed)}
+diff = defaultdict(list)
+for r in res["rows"]:
+    diff[r["category"]].append(r["iou"][routed] - r["iou"][base])
+k = len(diff)
+se = (sum(sum((d - sum(x) / len(x)) ** 2 for d in x) / (len(x) - 1) / len(x) for x in diff.values() if len(x) > 1)) ** 0.5 / k
+for col in (base, routed):
+    m = means[col]
+    print(f"{col}: mean of {len(m)} categories {sum(m.values()) / len(m):.4f}; " + ", ".join(f"{c} {v:.3f}" for c, v in sorted(m.items())))
+print(f"routed minus bundled: {sum(sum(x) / len(x) for x in diff.values()) / k:+.4f} +- {se:.4f} (paired, test shapes)")
+PY
+}
+
 eval_case() {  # EVAL_EXTRA and EVAL_NAME of an eval step: clean sketches, strong augmentation, side views, GT normals
   case "$1" in
     eval-strong-*) EVAL_EXTRA=(--augment-strength 1.0); EVAL_NAME=eval_strong ;;
@@ -2183,6 +2224,45 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     legs-more-v36)  # after legs-v36: the specialist trained on as long again, then every measure again with it (45 min)
       for s2 in predictor-v36-legs-more export-v36-more check-legs-v36 eval-legs-v36 eval-legs-side-v36 gallery-legs-v36; do
         step "$s2"
+      done ;;
+    route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~75 min)
+      for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37; do step "$s2"; done ;;
+    router-v37)  # the category router (training.model.router) trained on DATA37's generated images (and their flipped
+      # drawings'), ROUTER_EPOCHS [30] epochs, into RUNS37/router; scored on DATA36L's (50 other shapes a category): its
+      # accuracy and, per threshold, how many legged drawings it sends to the specialist and how many others; resumes
+      [ -f "$DATA37/.cache/generated/normals16_mirror/done.npy" ] || step data-v37
+      sketchmesh router train --data "$DATA37" --val-data "$DATA36L" --group "${LEGS[@]}" --epochs "${ROUTER_EPOCHS:-30}" \
+        --threads 2 --out "$RUNS37/router"
+      sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${LEGS[@]}" --threads 2 --json "$OUT37/router_val.json" ;;
+    routed-v37)  # the routed folder OUT37/models_routed: the bundled pair, legs-more-v36's specialist as
+      # mesh_predictor_legged.onnx and router-v37's router, sending a drawing to the specialist when bench + chair + table
+      # pass ROUTE_THRESHOLD [0.9] (chosen on DATA36L's table, router-v37: a drawing wrongly sent costs far more than a
+      # legged one kept, -0.21 against +0.02, route-v36)
+      [ -f "$OUT36/models_legs_more/mesh_predictor.onnx" ] || step export-v36-more
+      rm -rf "$OUT37/models_routed"; mkdir -p "$OUT37/models_routed"
+      cp assets/models/generator.onnx assets/models/mesh_predictor.onnx "$OUT37/models_routed/"
+      cp "$OUT36/models_legs_more/mesh_predictor.onnx" "$OUT37/models_routed/mesh_predictor_legged.onnx"
+      sketchmesh router export "$RUNS37/router" --models "$OUT37/models_routed" \
+        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" --threshold "${ROUTE_THRESHOLD:-0.9}"
+      du -b "$OUT37"/models_routed/*.onnx ;;
+    eval-route-clean-v37|eval-route-side-v37|eval-route-strong-v37)  # the bundled pair and the routed folder on every
+      # test sketch of the case (DATA36A: DATA2's test split at all 48 views) as the app feeds them (canvas path, mirror
+      # averaged, no refinement), into OUT37/route_{clean,side,strong}; then how the router sent them and the means
+      local c=${1#eval-route-}; c=${c%-v37}
+      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
+      sketchmesh eval --models bundled --models "$OUT37/models_routed" --mirror-only --data "$DATA36A" --split test \
+        --views 0 --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route_$c" > /dev/null
+      route_summary "$OUT37/route_$c/eval_models_test.json" ;;
+    data-v37)  # DATA37 (the router's training drawings: shapes 1300-1549 of all 13 categories, train split, 4 grid views
+      # each, ~10,400 drawings) and the fifth generator's images of them and of their flipped drawings; DATA36L's images
+      # (the router's validation: shapes 1200-1249); resumes
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data --source procedural --first-shape 1300 --shapes-per-category 250 --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA37"
+      local d
+      for d in "$DATA37" "$DATA36L"; do
+        sketchmesh data generated "$d" --models "$OUT8/models_fifth" --name normals16 --workers 2
+        sketchmesh data generated "$d" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2
       done ;;
     data-v36)  # DATA36 (training: bench, chair, table shapes 600-1199, train split, 4 grid views each), DATA36C (the
       # choice: shapes 1200-1249 of the three, as DATA72) and DATA36T (DATA2's shapes of the three, val and test); resume

@@ -219,7 +219,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
 _RUN_ONLY_EVAL_FLAGS = (("gt_normals", "--gt-normals"), ("generator_run", "--generator-run"),
                         ("baseline_run", "--baseline-run"), ("mesh_scale", "--mesh-scale"))
-_MODELS_ONLY_EVAL_FLAGS = (("views", "--views"),)
+_MODELS_ONLY_EVAL_FLAGS = (("views", "--views"), ("mirror_only", "--mirror-only"))
 
 
 def _eval_models_specs(args: argparse.Namespace) -> list[str]:
@@ -393,6 +393,8 @@ def register(commands, bench) -> None:
     p.add_argument("--mirror-average", action="store_true",
                    help="also score every run (or model folder) as 'NAME +mirror': each mesh averaged with the one "
                    "predicted from the drawing flipped left to right (the app's Mirror average), at twice the cost")
+    p.add_argument("--mirror-only", action="store_true", default=None,
+                   help="--models: score every folder only mirror averaged (the app's default), not also plain")
     p.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
                    help="evaluate at most this many test samples (with --models: meshes), evenly spaced (0: all)")
     p.add_argument("--voxel-resolution", type=int_in(4, MAX_VOXEL_RESOLUTION), default=32)

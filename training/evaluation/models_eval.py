@@ -353,7 +353,8 @@ def evaluate_models(
     Returns:
         JSON-ready dict: ``columns`` (model labels, then "retrieval" if it ran, then "template"),
         ``rows`` (per shape: category, shape_id, split, views, ``iou`` {column: mean over the views},
-        ``per_view`` [{view, azimuth, elevation, iou, retrieved}]),
+        ``per_view`` [{view, azimuth, elevation, iou, retrieved, and for folders with a router ``routes``
+        {label: {route, category}}}]),
         ``mean`` (per column, over the rows that have a value), ``counted`` (those rows),
         ``per_category``, ``notes`` and the settings.
 
@@ -430,6 +431,8 @@ def evaluate_models(
             try:
                 for label, engine in zip(labels, engines):
                     pred = engine.predict(sketch)
+                    if getattr(pred, "category", None) is not None:  # a folder with a router: where it sent the drawing
+                        rec.setdefault("routes", {})[label] = {"route": pred.route, "category": pred.category}
                     world = Mesh(world_vertices(np.asarray(pred.mesh.vertices, np.float64), cams[v]), pred.mesh.faces)
                     iou[label] = _iou(solid_voxels(world, voxel_resolution, voxel_surface), gt_vox)
             except EmptySketchError:  # a view with no ink (a degenerate mesh seen edge-on): nothing to score
@@ -542,7 +545,10 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
     folders = resolve_model_folders(model_specs)
     threads = args.threads or None
     engines = open_engines(folders, threads)
-    if getattr(args, "mirror_average", False):  # every folder again, averaged with the mirrored drawing's mesh
+    if getattr(args, "mirror_only", False):  # the app's default alone: each folder mirror averaged, not plain
+        engines = [MirrorAveraged(e) for e in engines]
+        folders = [(f"{label} +mirror", path) for label, path in folders]
+    elif getattr(args, "mirror_average", False):  # every folder again, averaged with the mirrored drawing's mesh
         engines += [MirrorAveraged(e) for e in engines]
         folders = folders + [(f"{label} +mirror", path) for label, path in folders]
     check_data(args.data, args.split)

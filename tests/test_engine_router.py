@@ -1,0 +1,152 @@
+"""The engine's router: a model folder with router.onnx sends a drawing to a specialist mesh predictor when the
+summed probability of its categories passes the threshold, and to mesh_predictor.onnx otherwise."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+
+from engine import contract as C
+from engine.errors import ModelError
+from engine.icosphere import icosphere
+from engine.pipeline import SketchEngine
+from engine.preprocess import rasterize_strokes
+from engine.strokes import Stroke
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from onnx_fixtures import make_predictor, make_router, write_fixture_models, write_model  # noqa: E402
+
+ORT_ATOL = 1e-5
+SPECIALIST = "mesh_predictor_legged.onnx"
+
+
+def _strokes() -> list[Stroke]:
+    t = np.linspace(0, 2 * np.pi, 60)
+    return [Stroke(np.stack([200 + 90 * np.cos(t), 150 + 70 * np.sin(t)], 1)), Stroke([[130, 150], [270, 170]])]
+
+
+def _folder(tmp_path: Path, probabilities, **router_kwargs) -> Path:
+    """Fixture pair + a specialist (another predictor: other weights, so another mesh) + a fixed-output router."""
+    folder = write_fixture_models(tmp_path / "models")
+    write_model(make_predictor(3, seed=7), folder / SPECIALIST)
+    write_model(make_router(probabilities, **router_kwargs), folder / C.ROUTER_FILE)
+    return folder
+
+
+def _vertices(predictor: Path, generator: Path, raster: np.ndarray) -> np.ndarray:
+    """Independent pipeline: raw ORT sessions, exact 4x block-mean downsampling, template + offsets."""
+    gen = ort.InferenceSession(str(generator), providers=["CPUExecutionProvider"])
+    pred = ort.InferenceSession(str(predictor), providers=["CPUExecutionProvider"])
+    (normals,) = gen.run(None, {"sketch": raster[None, None].astype(np.float32)})
+    small = normals.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5)).astype(np.float32)
+    local, glob = pred.run(["local_offset", "global_offset"], {"normals": small})
+    return icosphere(3).vertices.astype(np.float64) + local[0] + glob[0]
+
+
+def test_a_sure_router_sends_the_drawing_to_the_specialist(tmp_path):
+    folder = _folder(tmp_path, [0.5, 0.04, 0.46])  # bench + chair = 0.96 > 0.9
+    eng = SketchEngine(folder, threads=1, cache_size=0)
+    raster = rasterize_strokes(_strokes())
+    pred = eng.predict(raster)
+    want = _vertices(folder / SPECIALIST, folder / C.GENERATOR_FILE, raster)
+    other = _vertices(folder / C.PREDICTOR_FILE, folder / C.GENERATOR_FILE, raster)
+    assert np.abs(want - other).max() > 1e-3  # the two predictors differ, so the test can tell them apart
+    np.testing.assert_allclose(pred.mesh.vertices, want, atol=ORT_ATOL)
+    assert pred.route == SPECIALIST and pred.category == "bench"
+    info = eng.model_info()["router"]
+    assert info["routes"] == {SPECIALIST: ["bench", "chair"]} and info["route_threshold"] == 0.9
+
+
+def test_an_unsure_router_keeps_the_general_predictor_and_loads_no_specialist(tmp_path):
+    folder = _folder(tmp_path, [0.45, 0.12, 0.43])  # bench + chair = 0.88 < 0.9
+    eng = SketchEngine(folder, threads=1, cache_size=0)
+    raster = rasterize_strokes(_strokes())
+    pred = eng.predict(raster)
+    np.testing.assert_allclose(pred.mesh.vertices, _vertices(folder / C.PREDICTOR_FILE, folder / C.GENERATOR_FILE, raster),
+                               atol=ORT_ATOL)
+    assert pred.route is None and pred.category == "bench"
+    assert eng._specialists == {}  # never routed to: never loaded
+
+
+def test_no_router_no_route(tmp_path):
+    folder = write_fixture_models(tmp_path / "models")
+    pred = SketchEngine(folder, threads=1).predict(_strokes())
+    assert pred.route is None and pred.category is None
+    assert SketchEngine(folder, threads=1).model_info()["router"] is None
+
+
+def test_mirror_averaging_uses_the_plain_drawings_route_for_both_passes(tmp_path):
+    folder = _folder(tmp_path, [0.02, 0.03, 0.95])
+    eng = SketchEngine(folder, threads=1, cache_size=0, mirror_average=True)
+    raster = rasterize_strokes(_strokes())
+    pred = eng.predict(raster)
+    plain = _vertices(folder / SPECIALIST, folder / C.GENERATOR_FILE, raster)
+    flipped = _vertices(folder / SPECIALIST, folder / C.GENERATOR_FILE, np.ascontiguousarray(raster[:, ::-1]))
+    t = icosphere(3).vertices.astype(np.float64)
+    partner = np.linalg.norm(t[:, None] - (t * [-1.0, 1.0, 1.0])[None], axis=-1).argmin(1)
+    np.testing.assert_allclose(pred.mesh.vertices, (plain + (flipped * [-1.0, 1.0, 1.0])[partner]) / 2, atol=ORT_ATOL)
+    assert pred.route == SPECIALIST and pred.category == "chair"
+
+
+def test_the_route_is_cached_with_the_mesh(tmp_path):
+    folder = _folder(tmp_path, [0.5, 0.04, 0.46])
+    eng = SketchEngine(folder, threads=1)
+    first, again = eng.predict(_strokes()), eng.predict(_strokes())
+    assert again.cached and again.route == first.route == SPECIALIST and again.category == "bench"
+
+
+def _broken(tmp_path: Path, kind: str) -> tuple[Path, str]:
+    if kind == "missing specialist":
+        folder = _folder(tmp_path, [0.5, 0.04, 0.46])
+        (folder / SPECIALIST).unlink()
+        return folder, "not in"
+    if kind == "threshold":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], threshold=1.5), "route_threshold"
+    if kind == "unknown category":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], routes={SPECIALIST: ["bench", "sofa"]}), "categories of the router"
+    if kind == "route to the generator":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], routes={C.GENERATOR_FILE: ["bench"]}), "another .onnx file"
+    if kind == "categories not a list":
+        return _folder(tmp_path, [0.5, 0.5], metadata={C.META_CATEGORIES: '"bench"'}), "distinct names"
+    if kind == "output size":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], categories=("bench", "car", "chair", "lamp")), "dimension 1 must be 4"
+    if kind == "no routes":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], drop_metadata=(C.META_ROUTES,)), "lacks 'routes'"
+    if kind == "role":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROLE: C.ROLE_PREDICTOR}), "role"
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize("kind", ["missing specialist", "threshold", "unknown category", "route to the generator",
+                                  "categories not a list", "output size", "no routes", "role"])
+def test_a_broken_router_is_refused_on_load_naming_the_file(tmp_path, kind):
+    folder, match = _broken(tmp_path, kind)
+    with pytest.raises(ModelError, match=match) as err:
+        SketchEngine(folder, threads=1).load()
+    assert "router.onnx" in str(err.value)
+
+
+def test_a_specialist_of_another_sphere_and_a_nan_router_are_clear_errors(tmp_path):
+    folder = _folder(tmp_path, [0.5, 0.04, 0.46])
+    write_model(make_predictor(2, seed=7), folder / SPECIALIST)
+    with pytest.raises(ModelError, match="same sphere"):
+        SketchEngine(folder, threads=1).predict(_strokes())
+    nan = _folder(tmp_path / "nan", [np.nan, 0.5, 0.5])
+    with pytest.raises(ModelError, match="finite probabilities"):
+        SketchEngine(nan, threads=1).predict(_strokes())
+
+
+def test_a_folder_copied_without_its_router_runs_the_general_predictor(tmp_path):
+    folder = _folder(tmp_path, [0.5, 0.04, 0.46])
+    plain = tmp_path / "plain"
+    shutil.copytree(folder, plain)
+    (plain / C.ROUTER_FILE).unlink()
+    raster = rasterize_strokes(_strokes())
+    pred = SketchEngine(plain, threads=1).predict(raster)
+    np.testing.assert_allclose(pred.mesh.vertices, _vertices(plain / C.PREDICTOR_FILE, plain / C.GENERATOR_FILE, raster),
+                               atol=ORT_ATOL)

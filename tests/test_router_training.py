@@ -1,0 +1,186 @@
+"""Training, resuming and exporting the category router (training.model.router, `sketchmesh router`)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from engine import contract as C  # noqa: E402
+from engine.models import load_router  # noqa: E402
+from engine.pipeline import SketchEngine  # noqa: E402
+from training.data.dataset import write_manifest  # noqa: E402
+from training.data.generated import build_generated, generated_dir  # noqa: E402
+from training.data.mesh_cache import open_mesh_cache  # noqa: E402
+from training.export.router import export_router, parse_routes  # noqa: E402
+from training.loop.router import load_router_run, train_router  # noqa: E402
+from training.model.router import RouterConfig, RouterNet, labelled_rows, routing_table  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from onnx_fixtures import make_predictor, write_fixture_models, write_model  # noqa: E402
+from synthetic_data import write_synthetic_dataset  # noqa: E402
+
+torch.set_num_threads(2)
+CATS = ("blob", "box")
+
+
+def _pattern(category: str, rng: np.random.Generator) -> np.ndarray:
+    """(64, 64, 3) a category's stand-in normal image: the blob lit on the left, the box on the right, plus noise."""
+    img = rng.uniform(0.0, 0.3, (64, 64, 3))
+    if category == "blob":
+        img[:, :24] += 0.6
+    else:
+        img[:, 40:] += 0.6
+    return img.astype(np.float16)
+
+
+def _dataset(root: Path, models: Path, seed: int) -> Path:
+    """A synthetic dataset (2 categories x 3 train shapes x 2 views) with two generated sets holding the patterns."""
+    data = write_synthetic_dataset(root, categories=CATS, splits=("train", "train", "train"), views=2)
+    write_manifest(data)
+    cache = open_mesh_cache(data)
+    manifest = json.loads((data / "manifest.json").read_text())
+    rng = np.random.default_rng(seed)
+    for name in ("normals16", "normals16_mirror"):
+        build_generated(data, models, name, mirror=name.endswith("mirror"), progress=False)
+        folder = generated_dir(data, name)
+        arr = np.load(folder / "normals64.npy")
+        for s in manifest["shapes"]:
+            first, nv = cache.rows[s["file"]]
+            for v in range(nv):
+                arr[first + v] = _pattern(s["category"], rng)
+        np.save(folder / "normals64.npy", arr)
+    return data
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    base = tmp_path_factory.mktemp("router")
+    models = write_fixture_models(base / "models", level=3)
+    return _dataset(base / "train", models, 0), _dataset(base / "val", models, 1), models
+
+
+def _cfg(train: Path, val: Path, epochs: int) -> RouterConfig:
+    return RouterConfig(data=[str(train)], val_data=str(val), epochs=epochs, batch=8, lr=5e-3, channels=[4, 8, 8, 8])
+
+
+def test_labels_follow_the_manifest(setup):
+    train, _, _ = setup
+    sets, rows, cats = labelled_rows(train, ["normals16"])
+    assert cats == list(CATS) and len(rows) == 12
+    g, r, lab = sets[0]
+    x = g.rows(r)
+    left, right = x[:, :, :, :24].mean((1, 2, 3)), x[:, :, :, 40:].mean((1, 2, 3))
+    np.testing.assert_array_equal(lab, (right > left).astype(int))  # each label is its pattern's category
+
+
+def test_the_router_learns_separable_categories_and_a_resumed_run_is_the_straight_run(setup, tmp_path, monkeypatch):
+    train, val, _ = setup
+    last = train_router(tmp_path / "straight", _cfg(train, val, 12), progress=False, group=["box"])
+    assert last["val_accuracy"] == 1.0 and last["loss"] < 0.3
+    box = last["val_routing"][0]
+    assert box["recall"] == 1.0 and box["false_routes"] == 0.0 and box["group"] == box["others"] == 12
+    import training.loop.checkpoint as ckpt
+
+    save = ckpt.save_checkpoint
+
+    def killed_after_five(run, iteration, *args, **kwargs):
+        path = save(run, iteration, *args, **kwargs)
+        if iteration == 5:
+            raise KeyboardInterrupt  # the process dies right after its fifth checkpoint
+        return path
+
+    monkeypatch.setattr(ckpt, "save_checkpoint", killed_after_five)
+    with pytest.raises(KeyboardInterrupt):
+        train_router(tmp_path / "resumed", _cfg(train, val, 12), progress=False)
+    monkeypatch.setattr(ckpt, "save_checkpoint", save)
+    train_router(tmp_path / "resumed", _cfg(train, val, 12), progress=False)  # ...and is started again
+    a, _ = load_router_run(tmp_path / "straight")
+    b, cfg = load_router_run(tmp_path / "resumed")
+    for (name, p), q in zip(a.state_dict().items(), b.state_dict().values()):
+        torch.testing.assert_close(p, q, rtol=0, atol=1e-6, msg=name)
+    log = [json.loads(line) for line in (tmp_path / "resumed" / "log.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in log] == list(range(1, 13)) and cfg.categories == list(CATS)
+
+
+def test_a_checkpoint_of_another_router_is_refused(setup, tmp_path):
+    train, val, _ = setup
+    train_router(tmp_path / "run", _cfg(train, val, 1), progress=False)
+    other = _cfg(train, val, 2)
+    other.channels = [4, 8, 8, 16]
+    with pytest.raises(ValueError, match="another router"):
+        train_router(tmp_path / "run", other, progress=False)
+
+
+def test_routing_table_by_hand():
+    probs = np.array([[0.95, 0.05, 0.0], [0.5, 0.3, 0.2], [0.1, 0.1, 0.8], [0.0, 0.02, 0.98]])
+    labels = np.array([0, 1, 2, 2])
+    t = routing_table(probs, labels, ["bench", "chair", "car"], ["bench", "chair"], thresholds=(0.5, 0.9))
+    # group sums 1.0, 0.8, 0.2, 0.02: at 0.5 both group drawings go, at 0.9 only the first; no car goes
+    assert [(r["recall"], r["false_routes"]) for r in t] == [(1.0, 0.0), (0.5, 0.0)]
+
+
+def test_export_matches_torch_and_the_engine_routes_by_it(setup, tmp_path):
+    train, val, _ = setup
+    run = tmp_path / "run"
+    train_router(run, _cfg(train, val, 12), progress=False)
+    folder = write_fixture_models(tmp_path / "models")
+    write_model(make_predictor(3, seed=5), folder / "mesh_predictor_box.onnx")
+    report = export_router(run, folder, {"mesh_predictor_box.onnx": ["box"]}, 0.8)
+    assert report["parity_max_abs"] < 1e-5 and report["bytes"] < 60_000
+    router = load_router(folder / C.ROUTER_FILE, threads=1)
+    assert router.categories == list(CATS) and router.route_threshold == 0.8
+    net, _ = load_router_run(run)
+    rng = np.random.default_rng(3)
+    x = np.stack([_pattern(c, rng).astype(np.float32).transpose(2, 0, 1) for c in CATS])
+    (got,) = router.session.run(None, {C.ROUTER_INPUT: x})
+    with torch.no_grad():
+        want = torch.softmax(net(torch.from_numpy(x)), 1).numpy()
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    assert got[0].argmax() == 0 and got[1].argmax() == 1
+    assert SketchEngine(folder, threads=1).model_info()["router"]["routes"] == {"mesh_predictor_box.onnx": ["box"]}
+
+
+def test_parse_routes():
+    assert parse_routes(["a.onnx=bench,chair", "a.onnx=table"], ["bench", "chair", "table"]) == {
+        "a.onnx": ["bench", "chair", "table"]}
+    for bad, match in (("a.onnx", "expected FILE="), ("a.onnx=sofa", "sofa not among"), ("=bench", "expected")):
+        with pytest.raises(ValueError, match=match):
+            parse_routes([bad], ["bench", "chair"])
+
+
+def test_router_net_guards():
+    with pytest.raises(ValueError, match="at least 2"):
+        RouterNet(1)
+    with pytest.raises(ValueError, match="must be"):
+        RouterNet(3)(torch.zeros(1, 1, 64, 64))
+
+
+def _cli(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sketchmesh", "router", *args], capture_output=True, text=True, timeout=300)
+
+
+def test_cli_errors_are_one_line_and_nonzero(setup, tmp_path):
+    train, val, _ = setup
+    run = tmp_path / "run"
+    train_router(run, _cfg(train, val, 1), progress=False)
+    folder = write_fixture_models(tmp_path / "models")
+    cases = [
+        (["export", str(run), "--models", str(folder), "--route", "missing.onnx=box"], "no missing.onnx"),
+        (["export", str(run), "--models", str(folder), "--route", "x.onnx=sofa"], "sofa not among"),
+        (["export", str(run), "--models", str(folder), "--route", "x.onnx=box", "--threshold", "1.5"], "between 0 and 1"),
+        (["export", str(tmp_path / "nope"), "--models", str(folder), "--route", "x.onnx=box"], "does not exist"),
+        (["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")], "does not exist"),
+    ]
+    for args, match in cases:
+        r = _cli(*args)
+        assert r.returncode != 0, args
+        assert match in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
+    r = _cli("eval", str(run), "--data", str(val), "--group", "box")
+    assert r.returncode == 0 and "category right for" in r.stdout, r.stderr
