@@ -78,3 +78,19 @@ def test_every_sample_sketch_gives_a_sane_mesh(engine):
     # the meshes depend on the sketch: thin and wide drawings do not give the same proportions
     ratios = [e[0] / e[1] for e in extents]
     assert max(ratios) / min(ratios) > 1.3
+
+
+def test_the_bundled_router_sends_the_legged_samples_and_only_them_to_the_specialist(engine):
+    """Each sample's file name says its category: benches, chairs and tables (the hand-drawn table too) go to the
+    legged specialist, every other sample to the general predictor."""
+    info = engine.model_info()["router"]
+    assert info is not None, "the bundled folder has a router"
+    ((specialist, legged),) = info["routes"].items()
+    assert sorted(legged) == ["bench", "chair", "table"] and (MODELS_DIR / specialist).is_file()
+    samples = _samples()
+    assert len(samples) >= 13
+    for path in samples:
+        category = path.stem.split("_")[1] if path.stem.startswith("drawn_") else path.stem.split("_")[0]
+        pred = engine.predict(str(path))
+        assert (pred.route == specialist) == (category in legged), (path.name, pred.category, pred.route)
+        assert pred.route in (None, specialist)

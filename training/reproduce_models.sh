@@ -209,7 +209,8 @@
 #   drawings and of DATA36L's; router-v37 trains the category router on them (`sketchmesh router train`) and scores it on
 #   DATA36L; routed-v37 puts the bundled pair, legs-more-v36's specialist and the router in one model folder;
 #   eval-route-{clean,side,strong}-v37 score that folder beside the bundled pair on every test sketch of the case as the
-#   app runs them (route-all-v37 runs these five in order).
+#   app runs them; gallery-route-v37 draws both folders' meshes of the same test drawings; latency-route-v37 times the
+#   app's path with each folder (route-all-v37 runs these seven in order); ship-v37 bundles the router and the specialist.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -367,7 +368,7 @@ route_summary() {  # $1 an eval JSON of the bundled pair and a routed folder (mi
   # paired difference (standard error over the test shapes)
   python3 - "$1" "${LEGS[@]}" <<'PY'
 import json, sys
-from collections import defaultdict
+from collections import Counter, defaultdict
 res = json.load(open(sys.argv[1])); legs = set(sys.argv[2:])
 base, routed = res["columns"][0], res["columns"][1]
 views = [(r["category"], v) for r in res["rows"] for v in r["per_view"]]
@@ -376,7 +377,7 @@ leg = sum(c in legs for c, _ in sent)
 print(f"{n} drawings ({leg} legged): category right {sum(c == r['category'] for c, r in sent) / n:.3f}; sent to the "
       f"specialist: {sum(c in legs and r['route'] is not None for c, r in sent)} of {leg} legged, "
       f"{sum(c not in legs and r['route'] is not None for c, r in sent)} of {n - leg} others "
-      f"({', '.join(sorted(c for c, r in sent if c not in legs and r['route'] is not None)) or 'none'})")
+      f"({', '.join(f'{c} {k}' for c, k in sorted(Counter(c for c, r in sent if c not in legs and r['route']).items())) or 'none'})")
 per = defaultdict(lambda: defaultdict(list))
 for r in res["rows"]:
     for col in (base, routed):
@@ -385,12 +386,15 @@ means = {col: {c: sum(x) / len(x) for c, x in per[col].items()} for col in (base
 diff = defaultdict(list)
 for r in res["rows"]:
     diff[r["category"]].append(r["iou"][routed] - r["iou"][base])
-k = len(diff)
-se = (sum(sum((d - sum(x) / len(x)) ** 2 for d in x) / (len(x) - 1) / len(x) for x in diff.values() if len(x) > 1)) ** 0.5 / k
+def se(groups):  # standard error of the mean over categories, each category's test shapes as its draws
+    v = sum(sum((d - sum(x) / len(x)) ** 2 for d in x) / (len(x) - 1) / len(x) for x in groups.values() if len(x) > 1)
+    return v ** 0.5 / len(groups)
 for col in (base, routed):
     m = means[col]
-    print(f"{col}: mean of {len(m)} categories {sum(m.values()) / len(m):.4f}; " + ", ".join(f"{c} {v:.3f}" for c, v in sorted(m.items())))
-print(f"routed minus bundled: {sum(sum(x) / len(x) for x in diff.values()) / k:+.4f} +- {se:.4f} (paired, test shapes)")
+    print(f"{col}: mean of {len(m)} categories {sum(m.values()) / len(m):.4f} +- {se(per[col]):.4f}; "
+          + ", ".join(f"{c} {v:.3f}" for c, v in sorted(m.items())))
+print(f"routed minus bundled: {sum(sum(x) / len(x) for x in diff.values()) / len(diff):+.4f} +- {se(diff):.4f} "
+      "(paired, test shapes)")
 PY
 }
 
@@ -2225,34 +2229,90 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       for s2 in predictor-v36-legs-more export-v36-more check-legs-v36 eval-legs-v36 eval-legs-side-v36 gallery-legs-v36; do
         step "$s2"
       done ;;
-    route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~75 min)
-      for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37; do step "$s2"; done ;;
+    route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
+      for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
+          latency-route-v37; do
+        step "$s2"
+      done ;;
+    ship-v37)  # the routed folder becomes the app's bundled models: router.onnx and mesh_predictor_legged.onnx join the
+      # twenty-first pair in assets/models (the two networks' files unchanged)
+      [ -f "$OUT37/models_routed/router.onnx" ] || step routed-v37
+      cmp "$OUT37/models_routed/generator.onnx" assets/models/generator.onnx
+      cmp "$OUT37/models_routed/mesh_predictor.onnx" assets/models/mesh_predictor.onnx
+      cp "$OUT37/models_routed/router.onnx" "$OUT37/models_routed/mesh_predictor_legged.onnx" assets/models/ ;;
     router-v37)  # the category router (training.model.router) trained on DATA37's generated images (and their flipped
       # drawings'), ROUTER_EPOCHS [30] epochs, into RUNS37/router; scored on DATA36L's (50 other shapes a category): its
       # accuracy and, per threshold, how many legged drawings it sends to the specialist and how many others; resumes
       [ -f "$DATA37/.cache/generated/normals16_mirror/done.npy" ] || step data-v37
       sketchmesh router train --data "$DATA37" --val-data "$DATA36L" --group "${LEGS[@]}" --epochs "${ROUTER_EPOCHS:-30}" \
         --threads 2 --out "$RUNS37/router"
-      sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${LEGS[@]}" --threads 2 --json "$OUT37/router_val.json" ;;
+      sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${LEGS[@]}" --threads 2 --json "$OUT37/router_val.json"
+      python3 - "$OUT37/router_val.json" <<'PY'
+import json, sys
+# expected gain of a threshold on the 13-category mean: 3 of 13 categories legged, +0.028 on a legged drawing sent to
+# the specialist (legs-more-v36, test split), -0.21 on another drawing sent there (route-v36)
+for r in json.load(open(sys.argv[1]))["routing"]:
+    print(f"threshold {r['threshold']:.2f}: expected gain {3 / 13 * 0.028 * r['recall'] - 10 / 13 * 0.21 * r['false_routes']:+.4f}")
+PY
+      ;;
     routed-v37)  # the routed folder OUT37/models_routed: the bundled pair, legs-more-v36's specialist as
       # mesh_predictor_legged.onnx and router-v37's router, sending a drawing to the specialist when bench + chair + table
-      # pass ROUTE_THRESHOLD [0.9] (chosen on DATA36L's table, router-v37: a drawing wrongly sent costs far more than a
-      # legged one kept, -0.21 against +0.02, route-v36)
+      # pass ROUTE_THRESHOLD [0.8]: on DATA36L's table (router-v37) the threshold with the largest expected gain, 3/13 x
+      # recall x 0.028 (legs-more-v36's gain on a legged drawing) - 10/13 x false routes x 0.21 (what it loses on another,
+      # route-v36)
       [ -f "$OUT36/models_legs_more/mesh_predictor.onnx" ] || step export-v36-more
       rm -rf "$OUT37/models_routed"; mkdir -p "$OUT37/models_routed"
       cp assets/models/generator.onnx assets/models/mesh_predictor.onnx "$OUT37/models_routed/"
       cp "$OUT36/models_legs_more/mesh_predictor.onnx" "$OUT37/models_routed/mesh_predictor_legged.onnx"
       sketchmesh router export "$RUNS37/router" --models "$OUT37/models_routed" \
-        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" --threshold "${ROUTE_THRESHOLD:-0.9}"
+        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
       du -b "$OUT37"/models_routed/*.onnx ;;
-    eval-route-clean-v37|eval-route-side-v37|eval-route-strong-v37)  # the bundled pair and the routed folder on every
+    eval-route-clean-v37|eval-route-side-v37|eval-route-strong-v37)  # the twenty-first pair (the files bundled before the
+      # routed folder; eval-route-clean-v37 first ran with them as `--models bundled`, the same bytes) and the routed folder on every
       # test sketch of the case (DATA36A: DATA2's test split at all 48 views) as the app feeds them (canvas path, mirror
       # averaged, no refinement), into OUT37/route_{clean,side,strong}; then how the router sent them and the means
       local c=${1#eval-route-}; c=${c%-v37}
       local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
-      sketchmesh eval --models bundled --models "$OUT37/models_routed" --mirror-only --data "$DATA36A" --split test \
+      [ -f "$OUT36/models_twentyfirst/mesh_predictor.onnx" ] || step import-v36
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT37/models_routed" --mirror-only --data "$DATA36A" --split test \
         --views 0 --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route_$c" > /dev/null
       route_summary "$OUT37/route_$c/eval_models_test.json" ;;
+    gallery-route-v37)  # the gallery (one test shape a category, from 30 degrees and from the side) of the twenty-first pair
+      # and of the routed folder, mirror averaged: OUT37/gallery_{twentyfirst,routed}{,_side}.png
+      local m
+      for m in twentyfirst routed; do
+        local folder=$OUT36/models_twentyfirst; [ "$m" = routed ] && folder=$OUT37/models_routed
+        sketchmesh gallery --data "$DATA36A" --models "$folder" --mirror-average --threads 2 -o "$OUT37/gallery_$m.png"
+        sketchmesh gallery --data "$DATA36A" --models "$folder" --mirror-average --elevation 0 --azimuth 90 --threads 2 \
+          -o "$OUT37/gallery_${m}_side.png"
+      done ;;
+    latency-route-v37)  # the app's path timed (bench refine: 156 clean and 156 strong test sketches, mirror averaged, outline
+      # refinement 0 and 3 steps) for the twenty-first pair, then the routed folder, one after the other (run it alone: it times)
+      local m
+      for m in twentyfirst routed; do
+        local folder=$OUT36/models_twentyfirst; [ "$m" = routed ] && folder=$OUT37/models_routed
+        sketchmesh bench refine --data "$DATA36A" --models "$folder" --max-samples "$SAMPLES2" --mirror-average \
+          --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT37/latency_$m"
+      done
+      step router-cost-v37 ;;
+    router-cost-v37)  # what the router adds to each drawing, and what loading the specialist costs once (run it alone)
+      python3 - "$OUT37/models_routed" <<'PY'
+# 2 threads, p50 of 500 router passes (after 20 to warm up) and of 5 loads
+import sys, time
+import numpy as np
+from engine.models import load_predictor, load_router
+folder = sys.argv[1]
+router = load_router(f"{folder}/router.onnx", 2)
+x = np.random.default_rng(0).random((1, 3, 64, 64), dtype=np.float32)
+runs = []
+for _ in range(520):
+    t = time.perf_counter(); router.session.run(None, {"normals": x}); runs.append(time.perf_counter() - t)
+loads = []
+for _ in range(5):
+    t = time.perf_counter(); load_predictor(f"{folder}/mesh_predictor_legged.onnx", 2); loads.append(time.perf_counter() - t)
+print(f"router pass p50 {np.median(runs[20:]) * 1e3:.3f} ms; loading the specialist p50 {np.median(loads) * 1e3:.0f} ms")
+PY
+      ;;
     data-v37)  # DATA37 (the router's training drawings: shapes 1300-1549 of all 13 categories, train split, 4 grid views
       # each, ~10,400 drawings) and the fifth generator's images of them and of their flipped drawings; DATA36L's images
       # (the router's validation: shapes 1200-1249); resumes

@@ -54,8 +54,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     last = train_router(args.out, cfg, resume=args.resume, progress=not args.quiet, group=args.group or None)
     if "val_routing" in last:
         _print_table(last["val_routing"], args.group)
-    print(f"router run: {args.out} ({last.get('epoch', 0)} epochs; validation accuracy "
-          f"{last.get('val_accuracy', float('nan')):.3f})")
+    print(f"router run: {args.out} ({last.get('epoch', 0)} epochs in {last.get('seconds', 0.0) / 60:.1f} min; "
+          f"validation accuracy {last.get('val_accuracy', float('nan')):.3f})")
     return 0
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,7 @@ def train_router(run: str | os.PathLike, cfg: RouterConfig, resume: bool = True,
     steps_per_epoch = math.ceil(len(pairs) / cfg.batch)
     total = cfg.epochs * steps_per_epoch
     record: dict = log[-1] if log else {}
+    t_start, earlier = time.perf_counter(), float(record.get("seconds", 0.0))  # training time over every call
     for epoch in range(start, cfg.epochs):
         order = np.random.default_rng([cfg.seed, epoch]).permutation(len(pairs))
         gen = torch.Generator().manual_seed(cfg.seed * 100_003 + epoch)
@@ -121,7 +123,8 @@ def train_router(run: str | os.PathLike, cfg: RouterConfig, resume: bool = True,
             right += int((logits.argmax(1) == y).sum())
             seen += len(y)
             bar.set_postfix(loss=f"{loss_sum / seen:.3f}", acc=f"{right / seen:.3f}")
-        record = {"epoch": epoch + 1, "loss": loss_sum / seen, "train_accuracy": right / seen}
+        record = {"epoch": epoch + 1, "loss": loss_sum / seen, "train_accuracy": right / seen,
+                  "seconds": earlier + time.perf_counter() - t_start}
         if val_sets:
             probs, labels = predict_probabilities(net, val_sets)
             record["val_accuracy"] = float((probs.argmax(1) == labels).mean())

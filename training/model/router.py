@@ -37,7 +37,7 @@ class RouterNet(nn.Module):
     """(N, 3, 64, 64) normal images in [0, 1] -> (N, K) category logits.
 
     Four stride-2 3x3 convolutions (batch norm, ReLU) to 4 x 4, average-pooled to 2 x 2 (a coarse
-    layout: where the legs are), one linear layer. About 45,000 parameters (0.18 MB as float32).
+    layout: where the legs are), one linear layer. About 50,000 parameters (0.2 MB as float32).
     """
 
     def __init__(self, num_classes: int, channels: tuple[int, ...] = (16, 32, 48, 64)) -> None:
