@@ -211,6 +211,7 @@
 #   eval-route-{clean,side,strong}-v37 score that folder beside the bundled pair on every test sketch of the case as the
 #   app runs them; gallery-route-v37 draws both folders' meshes of the same test drawings; latency-route-v37 times the
 #   app's path with each folder (route-all-v37 runs these seven in order); ship-v37 bundles the router and the specialist.
+#   predictor-v37-legs-more2 trains the bundled specialist on a third time as long; check-legs-v37 scores it on DATA36C.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2295,6 +2296,20 @@ PY
           --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT37/latency_$m"
       done
       step router-cost-v37 ;;
+    predictor-v37-legs-more2)  # the bundled specialist (predictor-v36-legs-more's run) trained on a third time as long along a
+      # new cosine (the same rate, data and recipe) into RUNS37/legs_more2: does its gain still grow? V36_ITERS [3000],
+      # V36_MINUTES [65] at most; resumes
+      [ -f "$RUNS36/legs_more/config.json" ] || step predictor-v36-legs-more
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/legs_more" "$RUNS37/legs_more2" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    check-legs-v37)  # predictor-v37-legs-more2's run exported as the specialist is (float16 weights, beside the bundled
+      # generator; OUT37/models_legs_more2) and scored against the bundled specialist on the choice set (DATA36C, 129
+      # unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT37/check_legs
+      rm -rf "$OUT37/models_legs_more2"
+      sketchmesh export "$RUNS37/legs_more2" -o "$OUT37/models_legs_more2" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT37/models_legs_more2/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs_more" --models "$OUT37/models_legs_more2" \
+        --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT37/check_legs" ;;
     router-cost-v37)  # what the router adds to each drawing, and what loading the specialist costs once (run it alone)
       python3 - "$OUT37/models_routed" <<'PY'
 # 2 threads, p50 of 500 router passes (after 20 to warm up) and of 5 loads

@@ -97,23 +97,14 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _threshold(text: str) -> float:
+def _open_unit(text: str) -> float:
+    """A number strictly between 0 and 1 (a threshold, a learning rate)."""
     try:
         t = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
     if not 0.0 < t < 1.0:
         raise argparse.ArgumentTypeError(f"must lie strictly between 0 and 1, got {text}")
-    return t
-
-
-def _positive_float(text: str) -> float:
-    try:
-        t = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0.0 < t < 1.0:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 1), got {text}")
     return t
 
 
@@ -137,7 +128,7 @@ def register(commands, bench) -> None:
     t.add_argument("--out", required=True, metavar="RUN")
     t.add_argument("--epochs", type=int_in(1, 10_000), default=30)
     t.add_argument("--batch", type=int_in(1, 65_536), default=128)
-    t.add_argument("--lr", type=_positive_float, default=2e-3)
+    t.add_argument("--lr", type=_open_unit, default=2e-3)
     t.add_argument("--shift", type=int_in(0, 16), default=3, help="random shift in pixels (default 3)")
     t.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     t.add_argument("--group", nargs="+", metavar="CATEGORY", help="report routing to these categories on --val-data")
@@ -163,8 +154,8 @@ def register(commands, bench) -> None:
     x.add_argument("--models", required=True, metavar="DIR", help="model folder (with the specialist files in it)")
     x.add_argument("--route", required=True, action="append", metavar="FILE=CAT[,CAT...]",
                    help="a specialist file in DIR and the categories it serves; repeatable")
-    x.add_argument("--threshold", type=_threshold, default=0.9,
-                   help="summed probability above which a drawing goes to the specialist (default 0.9)")
+    x.add_argument("--threshold", type=_open_unit, default=0.8,
+                   help="summed probability above which a drawing goes to the specialist (default 0.8)")
     x.add_argument("--threads", type=int_in(0, 256), default=0)
     x.set_defaults(func=_cmd_export)
     one_line_errors(x)
