@@ -154,6 +154,8 @@ def infer_one(engine, sketch: Path, out: Path, fmt: str, *, smooth: int = 0, sub
                 "refine_steps": refine,
                 "mirror_average": pred.mirror_average,
                 "repair_folds": pred.repair_folds,
+                "category": pred.category,  # the model folder's router: what it read the drawing as (None without one)
+                "route": pred.route,  # the specialist predictor it chose (None: mesh_predictor.onnx)
                 "warnings": list(pred.warnings),
                 "cached": pred.cached,
                 "normals": str(normals_path) if normals_path is not None else None,

@@ -3,10 +3,13 @@ summed probability of its categories passes the threshold, and to mesh_predictor
 
 from __future__ import annotations
 
+import json
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import onnxruntime as ort
 import pytest
@@ -150,3 +153,16 @@ def test_a_folder_copied_without_its_router_runs_the_general_predictor(tmp_path)
     pred = SketchEngine(plain, threads=1).predict(raster)
     np.testing.assert_allclose(pred.mesh.vertices, _vertices(plain / C.PREDICTOR_FILE, plain / C.GENERATOR_FILE, raster),
                                atol=ORT_ATOL)
+
+
+def test_infer_reports_the_route(tmp_path):
+    """`sketchmesh infer --report`: the report says what the router read the drawing as and which predictor shaped it."""
+    folder = _folder(tmp_path, [0.5, 0.04, 0.46])
+    png = tmp_path / "sketch.png"
+    cv2.imwrite(str(png), ((1.0 - rasterize_strokes(_strokes())) * 255).astype(np.uint8))
+    report = tmp_path / "report.json"
+    r = subprocess.run([sys.executable, "-m", "sketchmesh", "infer", str(png), "-o", str(tmp_path / "m.obj"), "--models",
+                        str(folder), "--threads", "1", "--report", str(report)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rec = json.loads(report.read_text())
+    assert rec["route"] == SPECIALIST and rec["category"] == "bench"
