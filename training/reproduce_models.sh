@@ -2310,6 +2310,43 @@ PY
       cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT37/models_legs_more2/"
       sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs_more" --models "$OUT37/models_legs_more2" \
         --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT37/check_legs" ;;
+    routed2-v37)  # OUT37/models_routed2: the routed folder with predictor-v37-legs-more2's specialist in place of the bundled one
+      [ -f "$OUT37/models_legs_more2/mesh_predictor.onnx" ] || step check-legs-v37
+      rm -rf "$OUT37/models_routed2"; cp -r "$OUT37/models_routed" "$OUT37/models_routed2"
+      cp "$OUT37/models_legs_more2/mesh_predictor.onnx" "$OUT37/models_routed2/mesh_predictor_legged.onnx" ;;
+    eval-route2-clean-v37|eval-route2-side-v37|eval-route2-strong-v37)  # models_routed2 alone on the same drawings as
+      # eval-route-*-v37 (the eval is deterministic), into OUT37/route2_<case>; its means beside that step's two columns,
+      # and its paired differences from each
+      local c=${1#eval-route2-}; c=${c%-v37}
+      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
+      [ -f "$OUT37/models_routed2/router.onnx" ] || step routed2-v37
+      sketchmesh eval --models "$OUT37/models_routed2" --mirror-only --data "$DATA36A" --split test --views 0 \
+        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route2_$c" > /dev/null
+      python3 - "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" <<'PY'
+import json, sys
+from collections import defaultdict
+old, new = (json.load(open(f)) for f in sys.argv[1:3])
+col = new["columns"][0]
+cols = old["columns"][:2] + [col]
+iou = {(r["category"], r["shape_id"]): dict(r["iou"]) for r in old["rows"]}
+for r in new["rows"]:
+    iou[(r["category"], r["shape_id"])][col] = r["iou"][col]
+def mean_se(f):
+    per = defaultdict(list)
+    for (cat, _), d in iou.items():
+        per[cat].append(f(d))
+    m = sum(sum(x) / len(x) for x in per.values()) / len(per)
+    v = sum(sum((y - sum(x) / len(x)) ** 2 for y in x) / (len(x) - 1) / len(x) for x in per.values() if len(x) > 1)
+    return m, v ** 0.5 / len(per), per
+for c in cols:
+    m, se, per = mean_se(lambda d: d[c])
+    print(f"{c}: mean of {len(per)} categories {m:.4f} +- {se:.4f}; "
+          + ", ".join(f"{k} {sum(x) / len(x):.3f}" for k, x in sorted(per.items())))
+for c in cols[:2]:
+    m, se, _ = mean_se(lambda d: d[col] - d[c])
+    print(f"{col} minus {c}: {m:+.4f} +- {se:.4f} (paired, test shapes)")
+PY
+      ;;
     router-cost-v37)  # what the router adds to each drawing, and what loading the specialist costs once (run it alone)
       python3 - "$OUT37/models_routed" <<'PY'
 # 2 threads, p50 of 500 router passes (after 20 to warm up) and of 5 loads
