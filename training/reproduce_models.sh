@@ -210,8 +210,10 @@
 #   DATA36L; routed-v37 puts the bundled pair, legs-more-v36's specialist and the router in one model folder;
 #   eval-route-{clean,side,strong}-v37 score that folder beside the bundled pair on every test sketch of the case as the
 #   app runs them; gallery-route-v37 draws both folders' meshes of the same test drawings; latency-route-v37 times the
-#   app's path with each folder (route-all-v37 runs these seven in order); ship-v37 bundles the router and the specialist.
-#   predictor-v37-legs-more2 trains the bundled specialist on a third time as long; check-legs-v37 scores it on DATA36C.
+#   app's path with each folder (route-all-v37 runs these seven in order).
+#   predictor-v37-legs-more2 trains the specialist on a third time as long; check-legs-v37 scores it on DATA36C (the
+#   choice); routed2-v37 puts it in the routed folder and eval-route2-*-v37 score that folder on the same test drawings;
+#   ship-v37 bundles it (the bundled specialist since 2026-11-29 09:00; OUT37/models_routed's was bundled first).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -2235,12 +2237,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
           latency-route-v37; do
         step "$s2"
       done ;;
-    ship-v37)  # the routed folder becomes the app's bundled models: router.onnx and mesh_predictor_legged.onnx join the
-      # twenty-first pair in assets/models (the two networks' files unchanged)
-      [ -f "$OUT37/models_routed/router.onnx" ] || step routed-v37
-      cmp "$OUT37/models_routed/generator.onnx" assets/models/generator.onnx
-      cmp "$OUT37/models_routed/mesh_predictor.onnx" assets/models/mesh_predictor.onnx
-      cp "$OUT37/models_routed/router.onnx" "$OUT37/models_routed/mesh_predictor_legged.onnx" assets/models/ ;;
+    ship-v37)  # a routed folder becomes the app's bundled models: router.onnx and mesh_predictor_legged.onnx join the
+      # twenty-first pair in assets/models (the two networks' files unchanged). SHIP37 [OUT37/models_routed2]: the
+      # specialist's third round, chosen on DATA36C (check-legs-v37); OUT37/models_routed was bundled first (04871e1)
+      local folder=${SHIP37:-$OUT37/models_routed2}
+      [ -f "$folder/router.onnx" ] || step routed2-v37
+      cmp "$folder/generator.onnx" assets/models/generator.onnx
+      cmp "$folder/mesh_predictor.onnx" assets/models/mesh_predictor.onnx
+      cp "$folder/router.onnx" "$folder/mesh_predictor_legged.onnx" assets/models/ ;;
     router-v37)  # the category router (training.model.router) trained on DATA37's generated images (and their flipped
       # drawings'), ROUTER_EPOCHS [30] epochs, into RUNS37/router; scored on DATA36L's (50 other shapes a category): its
       # accuracy and, per threshold, how many legged drawings it sends to the specialist and how many others; resumes
@@ -2279,10 +2283,11 @@ PY
         --views 0 --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route_$c" > /dev/null
       route_summary "$OUT37/route_$c/eval_models_test.json" ;;
     gallery-route-v37)  # the gallery (one test shape a category, from 30 degrees and from the side) of the twenty-first pair
-      # and of the routed folder, mirror averaged: OUT37/gallery_{twentyfirst,routed}{,_side}.png
+      # and of the routed folders (routed2 once built), mirror averaged: OUT37/gallery_{twentyfirst,routed,routed2}{,_side}.png
       local m
-      for m in twentyfirst routed; do
-        local folder=$OUT36/models_twentyfirst; [ "$m" = routed ] && folder=$OUT37/models_routed
+      for m in twentyfirst routed routed2; do
+        local folder=$OUT36/models_twentyfirst; [ "$m" != twentyfirst ] && folder=$OUT37/models_$m
+        [ -f "$folder/mesh_predictor.onnx" ] || continue
         sketchmesh gallery --data "$DATA36A" --models "$folder" --mirror-average --threads 2 -o "$OUT37/gallery_$m.png"
         sketchmesh gallery --data "$DATA36A" --models "$folder" --mirror-average --elevation 0 --azimuth 90 --threads 2 \
           -o "$OUT37/gallery_${m}_side.png"
