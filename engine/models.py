@@ -312,8 +312,8 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
     meta = dict(sess.get_modelmeta().custom_metadata_map)
     _check_metadata(path, meta, C.ROLE_ROUTER)
     cats = _json_meta(path, meta, C.META_CATEGORIES)
-    if (not isinstance(cats, list) or len(cats) < 2 or len(set(cats)) != len(cats)
-            or not all(isinstance(c, str) and c for c in cats)):
+    if (not isinstance(cats, list) or len(cats) < 2 or not all(isinstance(c, str) and c for c in cats)
+            or len(set(cats)) != len(cats)):
         raise ModelError(f"{path}: router categories must be a list of two or more distinct names, got {cats!r}")
     routes = _json_meta(path, meta, C.META_ROUTES)
     if not isinstance(routes, dict) or not routes:
@@ -323,7 +323,8 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
         if (not isinstance(name, str) or Path(name).name != name or not name.endswith(".onnx")
                 or name in (C.GENERATOR_FILE, C.PREDICTOR_FILE, C.ROUTER_FILE)):
             raise ModelError(f"{path}: router route {name!r} must be another .onnx file name in the same folder")
-        if not isinstance(group, list) or not group or not all(c in cats for c in group) or seen & set(group):
+        if (not isinstance(group, list) or not group or not all(isinstance(c, str) and c in cats for c in group)
+                or len(set(group)) != len(group) or seen & set(group)):
             raise ModelError(f"{path}: route {name!r} must list categories of the router's, each in one route; "
                              f"got {group!r}")
         seen |= set(group)

@@ -245,6 +245,7 @@ class SketchEngine:
         self._predictor: LoadedModel | None = None
         self._router: LoadedModel | None = None
         self._specialists: dict[str, LoadedModel] = {}
+        self._specialist_errors: dict[str, ModelError] = {}  # a specialist that failed to load is not tried again
         self._load_lock = threading.Lock()
         self._run_lock = threading.Lock()
         self._cache_lock = threading.Lock()
@@ -308,13 +309,19 @@ class SketchEngine:
         with self._load_lock:
             model = self._specialists.get(name)
             if model is None:
-                model = load_predictor(self._models_dir / name, self._threads)
-                main = self._predictor
-                if (model.template_level, model.template_radius) != (main.template_level, main.template_radius):
-                    raise ModelError(
-                        f"{model.path}: template level {model.template_level} radius {model.template_radius} differs "
-                        f"from {main.path.name}'s ({main.template_level}, {main.template_radius}); a specialist must "
-                        "deform the same sphere")
+                if name in self._specialist_errors:
+                    raise self._specialist_errors[name]
+                try:
+                    model = load_predictor(self._models_dir / name, self._threads)
+                    main = self._predictor
+                    if (model.template_level, model.template_radius) != (main.template_level, main.template_radius):
+                        raise ModelError(
+                            f"{model.path}: template level {model.template_level} radius {model.template_radius} "
+                            f"differs from {main.path.name}'s ({main.template_level}, {main.template_radius}); a "
+                            "specialist must deform the same sphere")
+                except ModelError as exc:
+                    self._specialist_errors[name] = exc
+                    raise
                 self._specialists[name] = model
             return model
 
@@ -326,6 +333,9 @@ class SketchEngine:
         if p.shape != (len(router.categories),) or not np.all(np.isfinite(p)):
             raise ModelError(f"{router.path}: router output must be {len(router.categories)} finite probabilities, "
                              f"got shape {np.shape(probs)}")
+        if p.min() < -1e-6 or abs(p.sum() - 1.0) > 1e-3:
+            raise ModelError(f"{router.path}: router output must be probabilities that sum to 1 (a softmax), got sum "
+                             f"{p.sum():.4g} and min {p.min():.4g}")
         best, best_p = None, router.route_threshold
         for name, group in router.routes.items():
             q = float(sum(p[router.categories.index(c)] for c in group))

@@ -168,6 +168,7 @@ def make_router(
     *,
     metadata: dict[str, str] | None = None,
     drop_metadata: tuple[str, ...] = (),
+    softmax: bool = True,
 ) -> onnx.ModelProto:
     """A router whose ``probabilities`` are fixed: softmax of log(``probabilities``) whatever the image
     (the input is pooled and multiplied by zero, so the graph still reads it).
@@ -176,16 +177,18 @@ def make_router(
         probabilities: (K,) the output for every drawing (NaN entries make a broken router).
         categories, routes, threshold: the metadata (routes default: mesh_predictor_legged.onnx serves
             bench and chair).
+        softmax: False outputs ``probabilities`` as given, unnormalised (a router exported without its softmax).
     """
     p = np.asarray(probabilities, np.float64)
     k = len(p)
-    logits = np.log(np.where(p > 0, p, 1e-30)).astype(np.float32)
+    logits = np.log(np.where(p > 0, p, 1e-30)).astype(np.float32) if softmax else p.astype(np.float32)
     logits[np.isnan(p)] = np.nan
     nodes = [
         helper.make_node("GlobalAveragePool", [C.ROUTER_INPUT], ["pooled"]),
         helper.make_node("Flatten", ["pooled"], ["flat"], axis=1),
         helper.make_node("Gemm", ["flat", "W", "B"], ["logits"]),
-        helper.make_node("Softmax", ["logits"], [C.ROUTER_OUTPUT], axis=1),
+        helper.make_node("Softmax", ["logits"], [C.ROUTER_OUTPUT], axis=1) if softmax
+        else helper.make_node("Identity", ["logits"], [C.ROUTER_OUTPUT]),
     ]
     s = C.PREDICTOR_INPUT_SIZE
     graph = helper.make_graph(

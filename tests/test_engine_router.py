@@ -120,13 +120,18 @@ def _broken(tmp_path: Path, kind: str) -> tuple[Path, str]:
         return _folder(tmp_path, [0.5, 0.04, 0.46], categories=("bench", "car", "chair", "lamp")), "dimension 1 must be 4"
     if kind == "no routes":
         return _folder(tmp_path, [0.5, 0.04, 0.46], drop_metadata=(C.META_ROUTES,)), "lacks 'routes'"
+    if kind == "category twice":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], routes={SPECIALIST: ["bench", "bench"]}), "each in one route"
+    if kind == "categories not names":
+        return _folder(tmp_path, [0.5, 0.5], metadata={C.META_CATEGORIES: "[[1], [2]]"}), "distinct names"
     if kind == "role":
         return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROLE: C.ROLE_PREDICTOR}), "role"
     raise AssertionError(kind)
 
 
 @pytest.mark.parametrize("kind", ["missing specialist", "threshold", "unknown category", "route to the generator",
-                                  "categories not a list", "output size", "no routes", "role"])
+                                  "categories not a list", "output size", "no routes", "role", "category twice",
+                                  "categories not names"])
 def test_a_broken_router_is_refused_on_load_naming_the_file(tmp_path, kind):
     folder, match = _broken(tmp_path, kind)
     with pytest.raises(ModelError, match=match) as err:
@@ -139,9 +144,17 @@ def test_a_specialist_of_another_sphere_and_a_nan_router_are_clear_errors(tmp_pa
     write_model(make_predictor(2, seed=7), folder / SPECIALIST)
     with pytest.raises(ModelError, match="same sphere"):
         SketchEngine(folder, threads=1).predict(_strokes())
+    eng = SketchEngine(folder, threads=1)
+    for _ in range(2):  # a specialist that failed to load is not loaded again on the next drawing
+        with pytest.raises(ModelError, match="same sphere"):
+            eng.predict(_strokes())
+    assert list(eng._specialist_errors) == [SPECIALIST] and eng._specialists == {}
     nan = _folder(tmp_path / "nan", [np.nan, 0.5, 0.5])
     with pytest.raises(ModelError, match="finite probabilities"):
         SketchEngine(nan, threads=1).predict(_strokes())
+    raw = _folder(tmp_path / "raw", [0.9, 0.9, 0.9], softmax=False)  # logits, not probabilities: sums to 2.7
+    with pytest.raises(ModelError, match="sum to 1"):
+        SketchEngine(raw, threads=1).predict(_strokes())
 
 
 def test_a_folder_copied_without_its_router_runs_the_general_predictor(tmp_path):

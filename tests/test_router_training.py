@@ -126,6 +126,18 @@ def test_routing_table_by_hand():
     assert [(r["recall"], r["false_routes"]) for r in t] == [(1.0, 0.0), (0.5, 0.0)]
 
 
+def test_an_export_the_engine_would_refuse_leaves_the_folder_as_it_was(setup, tmp_path):
+    train, val, _ = setup
+    run = tmp_path / "run"
+    train_router(run, _cfg(train, val, 1), progress=False)
+    folder = write_fixture_models(tmp_path / "models")
+    write_model(make_predictor(3, seed=5), folder / "mesh_predictor_box.onnx")
+    before = sorted(p.name for p in folder.iterdir())
+    with pytest.raises(Exception, match="route"):
+        export_router(run, folder, {"mesh_predictor_box.onnx": ["box", "box"]}, 0.8)  # what parse_routes refuses
+    assert sorted(p.name for p in folder.iterdir()) == before  # no router.onnx, no temporary left
+
+
 def test_export_matches_torch_and_the_engine_routes_by_it(setup, tmp_path):
     train, val, _ = setup
     run = tmp_path / "run"
@@ -150,9 +162,23 @@ def test_export_matches_torch_and_the_engine_routes_by_it(setup, tmp_path):
 def test_parse_routes():
     assert parse_routes(["a.onnx=bench,chair", "a.onnx=table"], ["bench", "chair", "table"]) == {
         "a.onnx": ["bench", "chair", "table"]}
-    for bad, match in (("a.onnx", "expected FILE="), ("a.onnx=sofa", "sofa not among"), ("=bench", "expected")):
+    for bad, match in (("a.onnx", "expected FILE="), ("a.onnx=sofa", "sofa not among"), ("=bench", "expected"),
+                       ("mesh_predictor.onnx=bench", "another .onnx"), ("sub/a.onnx=bench", "another .onnx"),
+                       ("a.onnx=bench,bench", "already routed")):
         with pytest.raises(ValueError, match=match):
             parse_routes([bad], ["bench", "chair"])
+    with pytest.raises(ValueError, match="bench already routed"):
+        parse_routes(["a.onnx=bench", "b.onnx=bench"], ["bench", "chair"])
+
+
+def test_no_resume_on_a_run_and_an_unknown_group_are_refused(setup, tmp_path):
+    train, val, _ = setup
+    train_router(tmp_path / "run", _cfg(train, val, 1), progress=False)
+    with pytest.raises(ValueError, match="already has checkpoints"):
+        train_router(tmp_path / "run", _cfg(train, val, 2), resume=False, progress=False)
+    with pytest.raises(ValueError, match="sofa: not among"):
+        train_router(tmp_path / "other", _cfg(train, val, 1), progress=False, group=["sofa"])
+    assert not (tmp_path / "other" / "checkpoints").exists()  # refused before any training
 
 
 def test_router_net_guards():
@@ -177,6 +203,8 @@ def test_cli_errors_are_one_line_and_nonzero(setup, tmp_path):
         (["export", str(run), "--models", str(folder), "--route", "x.onnx=box", "--threshold", "1.5"], "between 0 and 1"),
         (["export", str(tmp_path / "nope"), "--models", str(folder), "--route", "x.onnx=box"], "does not exist"),
         (["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")], "does not exist"),
+        (["train", "--data", str(train), "--out", str(tmp_path / "r"), "--group", "box"], "give --val-data"),
+        (["eval", str(run), "--data", str(val), "--group", "sofa"], "sofa: not among"),
     ]
     for args, match in cases:
         r = _cli(*args)

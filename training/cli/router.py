@@ -49,9 +49,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.val_data:
         _check_data([args.val_data], "--val-data")
     check_output_dir(args.out, "--out")
+    if args.group and not args.val_data:
+        raise RouterArgsError("--group reports routing on --val-data: give --val-data DIR too")
     cfg = RouterConfig(data=list(args.data), inputs=list(args.inputs), val_data=args.val_data, epochs=args.epochs,
                        batch=args.batch, lr=args.lr, shift=args.shift, seed=args.seed)
-    last = train_router(args.out, cfg, resume=args.resume, progress=not args.quiet, group=args.group or None)
+    try:
+        last = train_router(args.out, cfg, resume=args.resume, progress=not args.quiet, group=args.group or None)
+    except ValueError as exc:  # another router's checkpoint, --no-resume on a run, an unknown --group category
+        raise RouterArgsError(str(exc)) from None
     if "val_routing" in last:
         _print_table(last["val_routing"], args.group)
     print(f"router run: {args.out} ({last.get('epoch', 0)} epochs in {last.get('seconds', 0.0) / 60:.1f} min; "
@@ -66,6 +71,9 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
     _check_data([args.data], "--data")
     net, cfg = load_router_run(args.run)
+    unknown = [c for c in args.group if c not in cfg.categories]
+    if unknown:
+        raise RouterArgsError(f"--group {' '.join(unknown)}: not among the router's categories {cfg.categories}")
     sets = labelled_rows(args.data, args.inputs, args.split, cfg.categories)[0]
     probs, labels = predict_probabilities(net, sets)
     acc = float((probs.argmax(1) == labels).mean())

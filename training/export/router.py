@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from engine import contract as C
 from training._torch import require_torch
 from training.loop.router import load_router_run
 from training.model.router import RouterProbabilities
@@ -28,9 +29,17 @@ def parse_routes(specs: list[str], categories: list[str]) -> dict[str, list[str]
         group = [c for c in cats.split(",") if c]
         if not sep or not name or not group:
             raise ValueError(f"--route {spec!r}: expected FILE=CATEGORY[,CATEGORY...]")
+        if Path(name).name != name or not name.endswith(".onnx") or name in (C.GENERATOR_FILE, C.PREDICTOR_FILE,
+                                                                              C.ROUTER_FILE):
+            raise ValueError(f"--route {spec!r}: FILE must be another .onnx file name in the model folder (not "
+                             f"{C.GENERATOR_FILE}, {C.PREDICTOR_FILE} or {C.ROUTER_FILE})")
         unknown = [c for c in group if c not in categories]
         if unknown:
             raise ValueError(f"--route {spec!r}: {', '.join(unknown)} not among the router's categories {categories}")
+        taken = [c for c in group if any(c in g for g in routes.values())] + [c for c in set(group) if group.count(c) > 1]
+        if taken:
+            raise ValueError(f"--route {spec!r}: {', '.join(sorted(set(taken)))} already routed (a category goes to one "
+                             "specialist, once)")
         routes[name] = routes.get(name, []) + group
     return routes
 
@@ -46,7 +55,6 @@ def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes:
     import io
     import warnings
 
-    from engine import contract as C
     from engine.errors import ModelError
     from engine.fileio import atomic_write_bytes
     from engine.models import load_router
@@ -84,6 +92,11 @@ def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes:
     if not err <= PARITY_TOLERANCE:
         raise ModelError(f"router export: ONNX Runtime differs from torch by {err:.3g} (tolerance {PARITY_TOLERANCE})")
     path = out / C.ROUTER_FILE
-    atomic_write_bytes(path, data)
-    load_router(path, threads=1)  # what the engine will check
+    check = out / f".{C.ROUTER_FILE}.{os.getpid()}.check.onnx"  # checked as the engine will, before it replaces anything
+    atomic_write_bytes(check, data)
+    try:
+        load_router(check, threads=1)
+        os.replace(check, path)
+    finally:
+        check.unlink(missing_ok=True)
     return {"path": str(path), "bytes": len(data), "parity_max_abs": err}

@@ -81,8 +81,13 @@ def train_router(run: str | os.PathLike, cfg: RouterConfig, resume: bool = True,
     net = RouterNet(len(cats), tuple(cfg.channels))
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     start, log = 0, []
+    unknown = [c for c in (group or []) if c not in cats]
+    if unknown:
+        raise ValueError(f"--group {' '.join(unknown)}: not among the router's categories {list(cats)}")
     remove_stale_checkpoint_files(run)
-    state = load_latest_checkpoint(run) if resume else None
+    state = load_latest_checkpoint(run)
+    if state is not None and not resume:
+        raise ValueError(f"{run} already has checkpoints: resume it, or choose another --out")
     if state is not None:
         saved = json.loads(state["config"])
         if saved.get("categories") != cfg.categories or saved.get("channels") != list(cfg.channels):
