@@ -176,6 +176,10 @@ def test_no_resume_on_a_run_and_an_unknown_group_are_refused(setup, tmp_path):
     train_router(tmp_path / "run", _cfg(train, val, 1), progress=False)
     with pytest.raises(ValueError, match="already has checkpoints"):
         train_router(tmp_path / "run", _cfg(train, val, 2), resume=False, progress=False)
+    other_lr = _cfg(train, val, 1)
+    other_lr.lr = 1e-3
+    with pytest.raises(ValueError, match="other settings .lr 0.005"):
+        train_router(tmp_path / "run", other_lr, progress=False)
     with pytest.raises(ValueError, match="sofa: not among"):
         train_router(tmp_path / "other", _cfg(train, val, 1), progress=False, group=["sofa"])
     assert not (tmp_path / "other" / "checkpoints").exists()  # refused before any training

@@ -93,6 +93,11 @@ def train_router(run: str | os.PathLike, cfg: RouterConfig, resume: bool = True,
         if saved.get("categories") != cfg.categories or saved.get("channels") != list(cfg.channels):
             raise ValueError(f"{run}: its checkpoint is of another router (categories or channels differ); "
                              "pass another --out")
+        now = json.loads(cfg.to_json())
+        changed = [k for k in now if k != "val_data" and saved.get(k) != now[k]]  # the data order and rates hang on them
+        if changed:
+            raise ValueError(f"{run} was trained with other settings ({', '.join(f'{k} {saved.get(k)!r}' for k in changed)}): "
+                             "resume it with the same ones, or choose another --out")
         net.load_state_dict(state["models"]["router"])
         opt.load_state_dict(state["optimizers"]["router"])
         start = int(state["iteration"])
