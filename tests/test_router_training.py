@@ -66,6 +66,22 @@ def setup(tmp_path_factory):
     return _dataset(base / "train", models, 0), _dataset(base / "val", models, 1), models
 
 
+@pytest.fixture(scope="module")
+def trained(setup, tmp_path_factory) -> Path:
+    """A router run trained 12 epochs on the patterns (the tests only read it)."""
+    train, val, _ = setup
+    run = tmp_path_factory.mktemp("trained") / "run"
+    train_router(run, _cfg(train, val, 12), progress=False)
+    return run
+
+
+def _box_folder(folder: Path) -> Path:
+    """The fixture pair and a specialist for the box category, mesh_predictor_box.onnx (another predictor's weights)."""
+    write_fixture_models(folder)
+    write_model(make_predictor(3, seed=5), folder / "mesh_predictor_box.onnx")
+    return folder
+
+
 def _cfg(train: Path, val: Path, epochs: int) -> RouterConfig:
     return RouterConfig(data=[str(train)], val_data=str(val), epochs=epochs, batch=8, lr=5e-3, channels=[4, 8, 8, 8])
 
@@ -126,24 +142,17 @@ def test_routing_table_by_hand():
     assert [(r["recall"], r["false_routes"]) for r in t] == [(1.0, 0.0), (0.5, 0.0)]
 
 
-def test_an_export_the_engine_would_refuse_leaves_the_folder_as_it_was(setup, tmp_path):
-    train, val, _ = setup
-    run = tmp_path / "run"
-    train_router(run, _cfg(train, val, 1), progress=False)
-    folder = write_fixture_models(tmp_path / "models")
-    write_model(make_predictor(3, seed=5), folder / "mesh_predictor_box.onnx")
+def test_an_export_the_engine_would_refuse_leaves_the_folder_as_it_was(trained, tmp_path):
+    folder = _box_folder(tmp_path / "models")
     before = sorted(p.name for p in folder.iterdir())
     with pytest.raises(Exception, match="route"):
-        export_router(run, folder, {"mesh_predictor_box.onnx": ["box", "box"]}, 0.8)  # what parse_routes refuses
+        export_router(trained, folder, {"mesh_predictor_box.onnx": ["box", "box"]}, 0.8)  # what parse_routes refuses
     assert sorted(p.name for p in folder.iterdir()) == before  # no router.onnx, no temporary left
 
 
-def test_export_matches_torch_and_the_engine_routes_by_it(setup, tmp_path):
-    train, val, _ = setup
-    run = tmp_path / "run"
-    train_router(run, _cfg(train, val, 12), progress=False)
-    folder = write_fixture_models(tmp_path / "models")
-    write_model(make_predictor(3, seed=5), folder / "mesh_predictor_box.onnx")
+def test_export_matches_torch_and_the_engine_routes_by_it(trained, tmp_path):
+    run = trained
+    folder = _box_folder(tmp_path / "models")
     report = export_router(run, folder, {"mesh_predictor_box.onnx": ["box"]}, 0.8)
     assert report["parity_max_abs"] < 1e-5 and report["bytes"] < 60_000
     router = load_router(folder / C.ROUTER_FILE, threads=1)
@@ -196,10 +205,9 @@ def _cli(*args) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "sketchmesh", "router", *args], capture_output=True, text=True, timeout=300)
 
 
-def test_cli_errors_are_one_line_and_nonzero(setup, tmp_path):
+def test_cli_errors_are_one_line_and_nonzero(setup, trained, tmp_path):
     train, val, _ = setup
-    run = tmp_path / "run"
-    train_router(run, _cfg(train, val, 1), progress=False)
+    run = trained
     folder = write_fixture_models(tmp_path / "models")
     cases = [
         (["export", str(run), "--models", str(folder), "--route", "missing.onnx=box"], "no missing.onnx"),

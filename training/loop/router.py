@@ -71,7 +71,7 @@ def train_router(run: str | os.PathLike, cfg: RouterConfig, resume: bool = True,
     from training.loop.config import code_version
 
     run = Path(run)
-    train_sets, _, cats = [], None, cfg.categories or None
+    train_sets, cats = [], cfg.categories or None
     for root in cfg.data:
         sets, _, cats = labelled_rows(root, cfg.inputs, "train", cats)
         train_sets += sets
