@@ -16,8 +16,8 @@ from engine.icosphere import icosphere  # noqa: E402
 from engine.mesh import Mesh  # noqa: E402
 from engine.pipeline import SketchEngine  # noqa: E402
 from sketchmesh.cli import main  # noqa: E402
-from training.evaluation.metrics import voxel_iou  # noqa: E402
-from training.evaluation.models_eval import SKETCH_PATHS, pick_views  # noqa: E402
+from training.evaluation.metrics import solid_voxels, support_count, voxel_iou  # noqa: E402
+from training.evaluation.models_eval import SKETCH_PATHS, markdown_report, pick_views, supports_summary  # noqa: E402
 
 MESHES = ("ball", "brick", "rod")
 BRICK = (1.0, 0.5, 0.3)
@@ -137,7 +137,13 @@ def test_a_model_iou_is_the_engines_mesh_rotated_back_to_the_world(result, world
     for label, folder in (("bundled", None), ("tiny", world["tiny"])):
         pred = SketchEngine(folder, threads=1, cache_size=0).predict(sketch).mesh
         assert view["iou"][label] == pytest.approx(_world_iou(pred, rot, gt), abs=1e-12)
+        world_mesh = Mesh((rot.T @ np.asarray(pred.vertices, np.float64).T).T, pred.faces)
+        assert view["supports"][label] == support_count(solid_voxels(world_mesh, 32))
         assert row["iou"][label] == pytest.approx(np.mean([v["iou"][label] for v in row["per_view"]]), abs=1e-12)
+    assert row["supports"] == support_count(solid_voxels(gt, 32)) == 1  # a brick stands on itself
+    # no shape of the three stands on two or more supports: nothing to share out
+    assert res["supports"]["parts"] == {"shapes": 3, "standing": 0, "drawings": 0} | {
+        c: {"separate": None, "same": None} for c in res["columns"]}
 
 
 def test_voxel_centres_flag_scores_with_cell_centres_only(world, result):
@@ -317,3 +323,29 @@ def test_sketch_path_feeds_the_engine_the_drawing_as_that_app_path_makes_it(worl
     assert not np.array_equal(fed, sketch)
     pred = SketchEngine(world["tiny"], threads=1, cache_size=0).predict(fed).mesh
     assert view["iou"]["tiny"] == pytest.approx(_world_iou(pred, rot, gt), abs=1e-12)
+
+
+def test_supports_summary_shares_hand_computed():
+    """Two tables (4 legs and 2 end panels) and a blob-shaped one, drawn twice each, as eval rows."""
+    def row(cat, gt, per_view):
+        return {"category": cat, "supports": gt, "per_view": [{"supports": s} for s in per_view]}
+    rows = [row("table", 4, [{"a": 4, "b": 1, "retrieval": 2}, {"a": 2, "b": 1, "retrieval": None}]),
+            row("table", 2, [{"a": 2, "b": 2, "retrieval": 2}, {"a": 1, "b": 3, "retrieval": 4}]),
+            row("table", 1, [{"a": 1, "b": 1, "retrieval": 1}, {"a": 1, "b": 1, "retrieval": 1}]),
+            row("lamp", 1, [{"a": 2, "b": 1, "retrieval": 1}])]
+    got = supports_summary(rows, ["a", "b", "retrieval", "template"], template_supports=1)
+    t = got["table"]
+    assert (t["shapes"], t["standing"], t["drawings"]) == (3, 2, 4)
+    assert t["a"] == {"separate": 3 / 4, "same": 2 / 4}  # 4 ok, 2 (of 4) separate only, 2 ok, 1 neither
+    assert t["b"] == {"separate": 2 / 4, "same": 1 / 4}  # 1, 1, 2 (same), 3 (separate)
+    assert t["retrieval"] == {"separate": 1.0, "same": 1 / 3}  # a miss is left out: 2, 2 (same), 4
+    assert t["template"] == {"separate": 0.0, "same": 0.0}
+    assert got["lamp"]["standing"] == 0 and got["lamp"]["a"] == {"separate": None, "same": None}
+    # the markdown lists the categories with standing shapes, as separate / same
+    result = {"columns": ["a", "b", "retrieval", "template"], "augment_strength": 0.0, "views_per_mesh": 2,
+              "voxel_resolution": 32, "split": "test", "data": "d", "meshes": 0, "rows": [],
+              "mean": dict.fromkeys(["a", "b", "retrieval", "template"]), "retrieval_views": 0, "retrieval_data": None,
+              "template": {"vertices": 642, "radius": 0.5}, "notes": [], "supports": got}
+    md = markdown_report(result)
+    assert "| table | 2 of 3 | 0.750 / 0.500 | 0.500 / 0.250 | 1.000 / 0.333 | 0.000 / 0.000 |" in md
+    assert "| lamp |" not in md

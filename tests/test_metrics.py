@@ -14,6 +14,8 @@ from training.evaluation.metrics import (
     sample_surface,
     silhouette_iou,
     solid_voxels,
+    support_count,
+    support_profile,
     surface_metrics,
     surface_voxels,
     voxel_centers,
@@ -299,3 +301,56 @@ def test_surface_voxels_split_one_large_face_across_chunks(monkeypatch):
     monkeypatch.setattr(metrics, "SURFACE_CANDIDATE_CHUNK", 101)  # 12^3 candidates: 18 chunks, one face
     np.testing.assert_array_equal(surface_voxels(tri, 12), whole)
     assert whole.sum() > 12 * 12 // 2
+
+
+# ---------------------------------------------------------------- supports (legs counted)
+
+
+def _stand(feet, height=8, top=2, R=16) -> np.ndarray:
+    """An (R, R, R) [x, y, z] grid: a top slab of ``top`` layers over ``height`` layers of columns at ``feet`` ((x0, x1, z0, z1) cells)."""
+    v = np.zeros((R, R, R), bool)
+    for x0, x1, z0, z1 in feet:
+        v[x0:x1, 1:1 + height, z0:z1] = True
+    v[2:14, 1 + height:1 + height + top, 2:14] = True
+    return v
+
+
+def test_support_count_of_hand_built_stands():
+    legs = [(2, 4, 2, 4), (12, 14, 2, 4), (2, 4, 12, 14), (12, 14, 12, 14)]
+    assert support_profile(_stand(legs)) == [4] * 8 + [1, 1]
+    assert support_count(_stand(legs)) == 4  # a table on four legs
+    assert support_count(_stand([(2, 4, 2, 14), (12, 14, 2, 14)])) == 2  # a trestle on two end panels
+    assert support_count(_stand([(7, 9, 7, 9)])) == 1  # a pedestal
+    assert support_count(np.ones((8, 8, 8), bool)) == 1 and support_count(np.zeros((8, 8, 8), bool)) == 0
+    # a skirt with stubs: four feet one layer high under a solid block; the lowest quarter (3 of 12 layers) has 4, 1, 1
+    skirt = np.zeros((16, 16, 16), bool)
+    skirt[2:14, 2:13, 2:14] = True
+    for x0, x1, z0, z1 in legs:
+        skirt[x0:x1, 1, z0:z1] = True
+    assert support_profile(skirt)[:3] == [4, 1, 1] and support_count(skirt) == 1
+    assert support_count(skirt, band=1 / 12) == 4  # only the feet's layer searched
+    # a leg that steps diagonally from cell to cell is one piece (8-neighbours in a layer)
+    diag = np.zeros((6, 3, 6), bool)
+    diag[[1, 2, 3], 1, [1, 2, 3]] = True
+    assert support_profile(diag) == [1]
+    # a gap layer between parts counts no pieces; the band's upper median: [3, 3, 0, 1] -> 3 (half the layers reach it)
+    gaps = np.zeros((12, 12, 12), bool)
+    gaps[[1, 5, 9], 0, 1] = gaps[[1, 5, 9], 1, 1] = True
+    gaps[:, 3, :] = True
+    assert support_profile(gaps) == [3, 3, 0, 1] and support_count(gaps, band=1.0) == 3
+
+
+def test_support_count_of_voxelised_meshes():
+    top = trimesh.creation.box((0.8, 0.06, 0.5)).apply_translation((0, 0.2, 0))
+    legs = [trimesh.creation.box((0.06, 0.6, 0.06)).apply_translation((x, -0.13, z)) for x in (-0.35, 0.35) for z in (-0.2, 0.2)]
+    table = _mesh(trimesh.util.concatenate([top, *legs]))
+    assert support_count(solid_voxels(table, 32)) == 4
+    assert support_count(solid_voxels(icosphere(3, 0.5), 32)) == 1
+
+
+@pytest.mark.parametrize("bad, band", [(np.zeros((4, 4), bool), 0.25), (np.zeros((4, 4, 4), np.uint8), 0.25),
+                                       (np.zeros((4, 4, 4), bool), 0.0), (np.zeros((4, 4, 4), bool), float("nan")),
+                                       (np.zeros((4, 4, 4), bool), 1.5)])
+def test_support_count_refuses_bad_input(bad, band):
+    with pytest.raises(ValueError):
+        support_count(bad, band)

@@ -365,7 +365,7 @@ def evaluate_models(
 
     from engine.icosphere import icosphere
     from training.data.dataset import ShapeViewDataset
-    from training.evaluation.metrics import ELEVATION_TOL, solid_voxels, world_vertices
+    from training.evaluation.metrics import ELEVATION_TOL, solid_voxels, support_count, world_vertices
 
     t_start = time.perf_counter()
     if not 1 <= voxel_resolution <= 512:
@@ -411,6 +411,7 @@ def evaluate_models(
     for cat, sid, shape_split in bar:
         gt = dataset.load_mesh(cat, sid)
         gt_vox = solid_voxels(gt, voxel_resolution, voxel_surface)
+        gt_supports = support_count(gt_vox)
         cams = dataset.shape_array(cat, sid, "cameras")
         azimuths = dataset.shape_array(cat, sid, "azimuths")
         elevations = dataset.shape_array(cat, sid, "elevations")
@@ -427,14 +428,17 @@ def evaluate_models(
                 skipped_views += 1
                 continue
             iou: dict = {}
-            rec: dict = {"view": int(v), "azimuth": float(azimuths[v]), "elevation": float(elevations[v]), "iou": iou}
+            supports: dict = {}
+            rec: dict = {"view": int(v), "azimuth": float(azimuths[v]), "elevation": float(elevations[v]), "iou": iou,
+                         "supports": supports}
             try:
                 for label, engine in zip(labels, engines):
                     pred = engine.predict(sketch)
                     if getattr(pred, "category", None) is not None:  # a folder with a router: where it sent the drawing
                         rec.setdefault("routes", {})[label] = {"route": pred.route, "category": pred.category}
                     world = Mesh(world_vertices(np.asarray(pred.mesh.vertices, np.float64), cams[v]), pred.mesh.faces)
-                    iou[label] = _iou(solid_voxels(world, voxel_resolution, voxel_surface), gt_vox)
+                    vox = solid_voxels(world, voxel_resolution, voxel_surface)
+                    iou[label], supports[label] = _iou(vox, gt_vox), support_count(vox)
             except EmptySketchError:  # a view with no ink (a degenerate mesh seen edge-on): nothing to score
                 skipped_views += 1
                 continue
@@ -443,7 +447,8 @@ def evaluate_models(
                 iou[RETRIEVAL], rec["retrieved"] = None, None
                 if hit is not None:
                     rmesh = searcher.world_mesh(hit, cams[v])
-                    iou[RETRIEVAL] = _iou(solid_voxels(rmesh, voxel_resolution, voxel_surface), gt_vox)
+                    rvox = solid_voxels(rmesh, voxel_resolution, voxel_surface)
+                    iou[RETRIEVAL], supports[RETRIEVAL] = _iou(rvox, gt_vox), support_count(rvox)
                     rcat, rsid = searcher.keys[hit]
                     rec["retrieved"] = f"{rcat}/{rsid} view {searcher.views[hit]}"
             per_view.append(rec)
@@ -451,7 +456,7 @@ def evaluate_models(
         rows.append({
             "category": cat, "shape_id": sid, "split": shape_split, "views": [r["view"] for r in per_view],
             "iou": {c: template_iou if c == TEMPLATE else _mean(r["iou"].get(c) for r in per_view) for c in columns},
-            "per_view": per_view,
+            "per_view": per_view, "supports": gt_supports,
         })
     bar.close()
     if elevation is not None and not rows:
@@ -470,6 +475,7 @@ def evaluate_models(
         per_cat[r["category"]].append(r)
     per_category = {cat: {c: _mean(r["iou"][c] for r in rs) for c in columns} | {"meshes": len(rs)}
                     for cat, rs in sorted(per_cat.items())}
+    template_supports = support_count(template_vox)
     return {
         "columns": columns,
         "models": {label: str(path) for label, path in models},
@@ -479,6 +485,7 @@ def evaluate_models(
         "paired": {"first": columns[0], "differences": paired},
         "counted": counted,
         "per_category": per_category,
+        "supports": supports_summary(rows, columns, template_supports),
         "notes": notes,
         "data": str(data_dir),
         "split": split,
@@ -494,6 +501,32 @@ def evaluate_models(
         "voxel_surface": bool(voxel_surface),
         "seconds": time.perf_counter() - t_start,
     }
+
+
+def supports_summary(rows: list[dict], columns: list[str], template_supports: int) -> dict:
+    """Per category, how the meshes stand (:func:`training.evaluation.metrics.support_count`), over the drawings of the
+    shapes that stand on two or more supports (legs, end panels, wheels): the share of those drawings whose mesh stands
+    on two or more too (``separate``), and the share whose mesh has the shape's own count (``same``), per column.
+
+    Returns:
+        {category: {"shapes": shapes in the category, "standing": those on two or more supports, "drawings": their
+        drawings, column: {"separate": share or None, "same": share or None}}}; a column without a count for a drawing
+        (a retrieval miss) is left out of that drawing's shares; the template sphere's count is the same for every drawing.
+    """
+    out: dict = {}
+    for cat in sorted({r["category"] for r in rows}):
+        rs = [r for r in rows if r["category"] == cat]
+        standing = [r for r in rs if r["supports"] >= 2]
+        entry: dict = {"shapes": len(rs), "standing": len(standing),
+                       "drawings": sum(len(r["per_view"]) for r in standing)}
+        for c in columns:
+            pairs = [(r["supports"], template_supports if c == TEMPLATE else v["supports"].get(c))
+                     for r in standing for v in r["per_view"]]
+            pairs = [(g, p) for g, p in pairs if p is not None]
+            entry[c] = {"separate": _mean(float(p >= 2) for _, p in pairs),
+                        "same": _mean(float(p == g) for g, p in pairs)}
+        out[cat] = entry
+    return out
 
 
 def _cell(x) -> str:
@@ -533,6 +566,16 @@ def markdown_report(result: dict) -> str:
     t = result["template"]
     lines.append(f"template: the predictor's {t['vertices']}-vertex template sphere (radius {t['radius']:g}) at the "
                  "origin, a model that learned nothing.")
+    sup = result.get("supports")
+    if sup and any(e["standing"] for e in sup.values()):
+        lines += ["", "How the meshes stand: of the drawings of shapes on two or more separate supports (legs, end panels, "
+                  "wheels; pieces in the lowest quarter of the height, `metrics.support_count`), the share whose mesh "
+                  "stands on two or more too / on the shape's own count:", "",
+                  "| category | shapes standing | " + " | ".join(cols) + " |", "|---|---:|" + "---:|" * len(cols)]
+        for cat, e in sup.items():
+            if e["standing"]:
+                lines.append(f"| {cat} | {e['standing']} of {e['shapes']} | "
+                             + " | ".join(f"{_cell(e[c]['separate'])} / {_cell(e[c]['same'])}" for c in cols) + " |")
     lines += [f"note: {n}" for n in result["notes"]]
     return "\n".join(lines) + "\n"
 
@@ -579,4 +622,4 @@ def evaluate_models_cli(args: argparse.Namespace, model_specs: list[str]) -> int
 
 
 __all__ = ["ModelsEvalError", "SketchRetrieval", "evaluate_models", "evaluate_models_cli", "markdown_report",
-           "pick_views", "resolve_model_folders", "sketch_feature"]
+           "pick_views", "resolve_model_folders", "sketch_feature", "supports_summary"]
