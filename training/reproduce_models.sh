@@ -323,6 +323,10 @@ LEGS=(bench chair table)
 RUNS37=${RUNS37:-runs/v37}
 OUT37=${OUT37:-out/v37}
 DATA37=${DATA37:-data/route1300v4}
+RUNS38=${RUNS38:-runs/v38}
+OUT38=${OUT38:-out/v38}
+DATA38N=${DATA38N:-data/legs1250v4}
+DATA38=${DATA38:-data/legs2100v4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -366,6 +370,35 @@ drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants fold
   sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
+versus_json() {  # eval JSONs of the same drawings (mirror only), the last one a single column: every column's 13-category
+  # mean (+- one standard error, the test shapes as the draws) and the last column's paired difference from each earlier one
+  python3 - "$@" <<'PY'
+import json, sys
+from collections import defaultdict
+*olds, new = (json.load(open(f)) for f in sys.argv[1:])
+col = new["columns"][0]
+cols = [c for old in olds for c in old["columns"] if c not in ("template", "retrieval")] + [col]  # the floors left out
+iou = defaultdict(dict)
+for res in olds + [new]:
+    for r in res["rows"]:
+        iou[(r["category"], r["shape_id"])].update(r["iou"])
+def mean_se(f):
+    per = defaultdict(list)
+    for (cat, _), d in iou.items():
+        per[cat].append(f(d))
+    m = sum(sum(x) / len(x) for x in per.values()) / len(per)
+    v = sum(sum((y - sum(x) / len(x)) ** 2 for y in x) / (len(x) - 1) / len(x) for x in per.values() if len(x) > 1)
+    return m, v ** 0.5 / len(per), per
+for c in cols:
+    m, se, per = mean_se(lambda d: d[c])
+    print(f"{c}: mean of {len(per)} categories {m:.4f} +- {se:.4f}; "
+          + ", ".join(f"{k} {sum(x) / len(x):.3f}" for k, x in sorted(per.items())))
+for c in cols[:-1]:
+    m, se, _ = mean_se(lambda d: d[col] - d[c])
+    print(f"{col} minus {c}: {m:+.4f} +- {se:.4f} (paired, test shapes)")
+PY
+}
+
 route_summary() {  # $1 an eval JSON of the bundled pair and a routed folder (mirror only): how often the router sent a
   # legged drawing (LEGS) to the specialist and another one, its category accuracy, and both 13-category means with the
   # paired difference (standard error over the test shapes)
@@ -2232,6 +2265,68 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       for s2 in predictor-v36-legs-more export-v36-more check-legs-v36 eval-legs-v36 eval-legs-side-v36 gallery-legs-v36; do
         step "$s2"
       done ;;
+    data-v38)  # DATA38N (bench, chair and table shapes 1250-1549, train split, 4 grid views each: shapes the specialist has
+      # not seen, DATA36C's choice shapes 1200-1249 left out), merged with DATA36 into DATA38 (the files hard-linked), and
+      # the fifth generator's images of DATA38's drawings and of their flipped drawings; resumes
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data --source procedural --first-shape 1250 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA38N"
+      sketchmesh data merge "$DATA38" "$DATA36" "$DATA38N"
+      sketchmesh data generated "$DATA38" --models "$OUT8/models_fifth" --name normals16 --workers 2
+      sketchmesh data generated "$DATA38" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    predictor-v38-legs-more3)  # the bundled specialist (predictor-v37-legs-more2's run) trained on a fourth time along a new
+      # cosine (the same rate and recipe) on DATA38: DATA36's shapes and 300 a category more it has not seen, into
+      # RUNS38/legs_more3. V36_ITERS [3000], V36_MINUTES [65] at most; resumes
+      [ -f "$DATA38/.cache/generated/normals16_mirror/info.json" ] || step data-v38
+      [ -f "$RUNS37/legs_more2/config.json" ] || step predictor-v37-legs-more2
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA38 recipe20 "$RUNS37/legs_more2" "$RUNS38/legs_more3" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    check-legs-v38)  # predictor-v38-legs-more3's run exported as the specialist is (float16 weights, beside the bundled
+      # generator; OUT38/models_legs_more3) and scored against the bundled specialist (the third round) on the choice set
+      # (DATA36C, 129 unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT38/check_legs
+      rm -rf "$OUT38/models_legs_more3"
+      sketchmesh export "$RUNS38/legs_more3" -o "$OUT38/models_legs_more3" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT38/models_legs_more3/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT37/models_legs_more2" --models "$OUT38/models_legs_more3" \
+        --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT38/check_legs" ;;
+    routed3-v38)  # OUT38/models_routed3: the bundled folder with predictor-v38-legs-more3's specialist in its place
+      [ -f "$OUT38/models_legs_more3/mesh_predictor.onnx" ] || step check-legs-v38
+      rm -rf "$OUT38/models_routed3"; mkdir -p "$OUT38"; cp -r "$OUT37/models_routed2" "$OUT38/models_routed3"
+      cp "$OUT38/models_legs_more3/mesh_predictor.onnx" "$OUT38/models_routed3/mesh_predictor_legged.onnx" ;;
+    eval-route3-clean-v38|eval-route3-side-v38|eval-route3-strong-v38)  # models_routed3 on the same drawings as
+      # eval-route-*-v37 and eval-route2-*-v37 (the eval is deterministic), into OUT38/route3_<case>; its means beside
+      # theirs (the twenty-first alone, the first routed folder, the bundled one) and its paired differences from each
+      local c=${1#eval-route3-}; c=${c%-v38}
+      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
+      [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
+      [ -f "$OUT37/route2_$c/eval_models_test.json" ] || step "eval-route2-$c-v37"
+      sketchmesh eval --models "$OUT38/models_routed3" --mirror-only --data "$DATA36A" --split test --views 0 \
+        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT38/route3_$c" > /dev/null
+      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" \
+        "$OUT38/route3_$c/eval_models_test.json" ;;
+    gallery-route-v38)  # the gallery of eval-route3's folder (one test shape a category, from 30 degrees and from the
+      # side, mirror averaged): OUT38/gallery_routed3{,_side}.png, beside OUT37's
+      [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
+      sketchmesh gallery --data "$DATA36A" --models "$OUT38/models_routed3" --mirror-average --threads 2 -o "$OUT38/gallery_routed3.png"
+      sketchmesh gallery --data "$DATA36A" --models "$OUT38/models_routed3" --mirror-average --elevation 0 --azimuth 90 \
+        --threads 2 -o "$OUT38/gallery_routed3_side.png" ;;
+    supports-v38)  # how the meshes stand (`eval --models`' supports table: pieces in the lowest quarter of the height,
+      # metrics.support_count): the twenty-first pair and models_routed3, mirror averaged as the app runs them, on
+      # DATA36T's legged test shapes at 12 views each (canvas path), with retrieval among DATA36L's unseen shapes of all
+      # 13 categories as the reference of real shapes; into OUT38/supports
+      [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT38/models_routed3" --mirror-only --data "$DATA36T" \
+        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT38/supports" ;;
+    ship-v38)  # models_routed3's specialist becomes the bundled one (the other three files unchanged)
+      [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
+      local f
+      for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT38/models_routed3/$f" "assets/models/$f"; done
+      cp "$OUT38/models_routed3/mesh_predictor_legged.onnx" assets/models/ ;;
+    legs-v38)  # the specialist's fourth round, every step in order (about 80 min on 2 cores, one step at a time)
+      for s2 in data-v38 predictor-v38-legs-more3 check-legs-v38 routed3-v38 eval-route3-clean-v38 eval-route3-side-v38 \
+          eval-route3-strong-v38 gallery-route-v38 supports-v38; do
+        step "$s2"
+      done ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
@@ -2327,30 +2422,7 @@ PY
       [ -f "$OUT37/models_routed2/router.onnx" ] || step routed2-v37
       sketchmesh eval --models "$OUT37/models_routed2" --mirror-only --data "$DATA36A" --split test --views 0 \
         --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route2_$c" > /dev/null
-      python3 - "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" <<'PY'
-import json, sys
-from collections import defaultdict
-old, new = (json.load(open(f)) for f in sys.argv[1:3])
-col = new["columns"][0]
-cols = old["columns"][:2] + [col]
-iou = {(r["category"], r["shape_id"]): dict(r["iou"]) for r in old["rows"]}
-for r in new["rows"]:
-    iou[(r["category"], r["shape_id"])][col] = r["iou"][col]
-def mean_se(f):
-    per = defaultdict(list)
-    for (cat, _), d in iou.items():
-        per[cat].append(f(d))
-    m = sum(sum(x) / len(x) for x in per.values()) / len(per)
-    v = sum(sum((y - sum(x) / len(x)) ** 2 for y in x) / (len(x) - 1) / len(x) for x in per.values() if len(x) > 1)
-    return m, v ** 0.5 / len(per), per
-for c in cols:
-    m, se, per = mean_se(lambda d: d[c])
-    print(f"{c}: mean of {len(per)} categories {m:.4f} +- {se:.4f}; "
-          + ", ".join(f"{k} {sum(x) / len(x):.3f}" for k, x in sorted(per.items())))
-for c in cols[:2]:
-    m, se, _ = mean_se(lambda d: d[col] - d[c])
-    print(f"{col} minus {c}: {m:+.4f} +- {se:.4f} (paired, test shapes)")
-PY
+      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json"
       ;;
     router-cost-v37)  # what the router adds to each drawing, and what loading the specialist costs once (run it alone)
       python3 - "$OUT37/models_routed" <<'PY'
