@@ -140,10 +140,10 @@ def test_a_model_iou_is_the_engines_mesh_rotated_back_to_the_world(result, world
         world_mesh = Mesh((rot.T @ np.asarray(pred.vertices, np.float64).T).T, pred.faces)
         assert view["supports"][label] == support_count(solid_voxels(world_mesh, 32))
         assert row["iou"][label] == pytest.approx(np.mean([v["iou"][label] for v in row["per_view"]]), abs=1e-12)
-    assert row["supports"] == support_count(solid_voxels(gt, 32)) == 1  # a brick stands on itself
+    assert row["true_supports"] == support_count(solid_voxels(gt, 32)) == 1  # a brick stands on itself
     # no shape of the three stands on two or more supports: nothing to share out
-    assert res["supports"]["parts"] == {"shapes": 3, "standing": 0, "drawings": 0} | {
-        c: {"separate": None, "same": None} for c in res["columns"]}
+    assert res["supports"]["parts"] == {"shapes": 3, "standing": 0, "drawings": 0, "columns": {
+        c: {"separate": None, "same": None} for c in res["columns"]}}
 
 
 def test_voxel_centres_flag_scores_with_cell_centres_only(world, result):
@@ -328,19 +328,19 @@ def test_sketch_path_feeds_the_engine_the_drawing_as_that_app_path_makes_it(worl
 def test_supports_summary_shares_hand_computed():
     """Two tables (4 legs and 2 end panels) and a blob-shaped one, drawn twice each, as eval rows."""
     def row(cat, gt, per_view):
-        return {"category": cat, "supports": gt, "per_view": [{"supports": s} for s in per_view]}
+        return {"category": cat, "true_supports": gt, "per_view": [{"supports": s} for s in per_view]}
     rows = [row("table", 4, [{"a": 4, "b": 1, "retrieval": 2}, {"a": 2, "b": 1, "retrieval": None}]),
             row("table", 2, [{"a": 2, "b": 2, "retrieval": 2}, {"a": 1, "b": 3, "retrieval": 4}]),
             row("table", 1, [{"a": 1, "b": 1, "retrieval": 1}, {"a": 1, "b": 1, "retrieval": 1}]),
             row("lamp", 1, [{"a": 2, "b": 1, "retrieval": 1}])]
     got = supports_summary(rows, ["a", "b", "retrieval", "template"], template_supports=1)
-    t = got["table"]
+    t, shares = got["table"], got["table"]["columns"]
     assert (t["shapes"], t["standing"], t["drawings"]) == (3, 2, 4)
-    assert t["a"] == {"separate": 3 / 4, "same": 2 / 4}  # 4 ok, 2 (of 4) separate only, 2 ok, 1 neither
-    assert t["b"] == {"separate": 2 / 4, "same": 1 / 4}  # 1, 1, 2 (same), 3 (separate)
-    assert t["retrieval"] == {"separate": 1.0, "same": 1 / 3}  # a miss is left out: 2, 2 (same), 4
-    assert t["template"] == {"separate": 0.0, "same": 0.0}
-    assert got["lamp"]["standing"] == 0 and got["lamp"]["a"] == {"separate": None, "same": None}
+    assert shares["a"] == {"separate": 3 / 4, "same": 2 / 4}  # 4 ok, 2 (of 4) separate only, 2 ok, 1 neither
+    assert shares["b"] == {"separate": 2 / 4, "same": 1 / 4}  # 1, 1, 2 (same), 3 (separate)
+    assert shares["retrieval"] == {"separate": 1.0, "same": 1 / 3}  # a miss is left out: 2, 2 (same), 4
+    assert shares["template"] == {"separate": 0.0, "same": 0.0}
+    assert got["lamp"]["standing"] == 0 and got["lamp"]["columns"]["a"] == {"separate": None, "same": None}
     # the markdown lists the categories with standing shapes, as separate / same
     result = {"columns": ["a", "b", "retrieval", "template"], "augment_strength": 0.0, "views_per_mesh": 2,
               "voxel_resolution": 32, "split": "test", "data": "d", "meshes": 0, "rows": [],
@@ -349,3 +349,31 @@ def test_supports_summary_shares_hand_computed():
     md = markdown_report(result)
     assert "| table | 2 of 3 | 0.750 / 0.500 | 0.500 / 0.250 | 1.000 / 0.333 | 0.000 / 0.000 |" in md
     assert "| lamp |" not in md
+
+
+def test_a_shape_on_legs_is_counted_end_to_end(tmp_path):
+    """A stool (a seat on four legs) rendered and scored: its own count is 4 and the supports table lists it."""
+    import trimesh
+
+    folder = tmp_path / "meshes" / "stools"
+    folder.mkdir(parents=True)
+    seat = trimesh.creation.box((0.8, 0.08, 0.8)).apply_translation((0, 0.3, 0))
+    legs = [trimesh.creation.box((0.08, 0.7, 0.08)).apply_translation((x, -0.08, z)) for x in (-0.33, 0.33) for z in (-0.33, 0.33)]
+    trimesh.util.concatenate([seat, *legs]).export(folder / "stool.obj")
+    data = tmp_path / "data"
+    assert main(["data", "--source", f"meshes:{tmp_path / 'meshes'}", "--out", str(data), "--views", "4",
+                 "--small-size", "32", "--no-progress"]) == 0
+    out = tmp_path / "report"
+    assert main(["eval", "--models", "bundled", "--data", str(data), "--split", "all", "--views", "2", "--no-retrieval",
+                 "--threads", "1", "--quiet", "--out", str(out)]) == 0
+    res = json.loads((out / "eval_models_all.json").read_text())
+    (row,) = res["rows"]
+    assert row["true_supports"] == 4
+    counts = [v["supports"]["bundled"] for v in row["per_view"]]
+    e = res["supports"]["stools"]
+    assert (e["shapes"], e["standing"], e["drawings"]) == (1, 1, 2)
+    assert e["columns"]["bundled"] == {"separate": np.mean([c >= 2 for c in counts]), "same": np.mean([c == 4 for c in counts])}
+    assert e["columns"]["template"] == {"separate": 0.0, "same": 0.0}  # the sphere stands on one
+    md = (out / "eval_models_all.md").read_text()
+    b = e["columns"]["bundled"]
+    assert f"| stools | 1 of 1 | {b['separate']:.3f} / {b['same']:.3f} | 0.000 / 0.000 |" in md

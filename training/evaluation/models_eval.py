@@ -36,9 +36,16 @@ Floors, in the same table:
   Unlike ``eval RUN``'s retrieval (by generated normal images) it uses only the drawing, so it
   is one floor for every model folder. With no training shapes it is skipped with a note.
 
+How the meshes stand, beside the IoU: every voxelisation's :func:`training.evaluation.metrics.support_count` (the
+separate pieces, legs, end panels or wheels, that the lowest quarter of its height is split into; the retrieved shape
+counted upright, as it was modelled), and per category, over the drawings of the shapes that stand on two or more, the
+share of each column's meshes that stand on two or more too and that stand on as many (:func:`supports_summary`): issue
+16's "parts a person would name" counted on every drawing instead of looked for in a gallery row.
+
 Outputs: a markdown table (printed, and written to ``OUT/eval_models_<split>.md``), JSON
 (``OUT/eval_models_<split>.json`` and ``--json PATH``): every shape's row (mean IoUs and each
-view's), the means, per-category means, and the settings. ``OUT`` defaults to ``DATA/eval``.
+view's, the supports), the means, per-category means, the supports table and the settings. ``OUT`` defaults to
+``DATA/eval``.
 """
 
 from __future__ import annotations
@@ -218,6 +225,7 @@ class SketchRetrieval:
         self._key_ids = {k: i for i, k in enumerate(sorted(set(keys)))}
         self._row_key = np.array([self._key_ids[k] for k in keys], np.int64)
         self._meshes: dict[tuple[str, str], Mesh] = {}
+        self._supports: dict[tuple, int] = {}
 
     def __len__(self) -> int:
         return len(self.keys)
@@ -240,6 +248,17 @@ class SketchRetrieval:
         if key not in self._meshes:
             self._meshes[key] = self.dataset.load_mesh(*key)
         return self._meshes[key]
+
+    def supports(self, row: int, resolution: int, surface: bool) -> int:
+        """The retrieved shape's :func:`~training.evaluation.metrics.support_count`, upright as it was modelled (not
+        tilted into the query's view as :meth:`world_mesh` places it for the IoU: a view from another elevation would
+        tilt its legs into one another)."""
+        from training.evaluation.metrics import solid_voxels, support_count
+
+        key = (self.keys[row], int(resolution), bool(surface))
+        if key not in self._supports:
+            self._supports[key] = support_count(solid_voxels(self.mesh(row), resolution, surface))
+        return self._supports[key]
 
     def world_mesh(self, row: int, query_camera: np.ndarray) -> Mesh:
         """The retrieved shape as it looked in its own view, shown in the query's view, in the world frame."""
@@ -353,10 +372,11 @@ def evaluate_models(
     Returns:
         JSON-ready dict: ``columns`` (model labels, then "retrieval" if it ran, then "template"),
         ``rows`` (per shape: category, shape_id, split, views, ``iou`` {column: mean over the views},
-        ``per_view`` [{view, azimuth, elevation, iou, retrieved, and for folders with a router ``routes``
-        {label: {route, category}}}]),
+        ``per_view`` [{view, azimuth, elevation, iou, ``supports`` {column: count; None for a retrieval miss; no
+        template entry, its count is the summary's}, retrieved, and for folders with a router ``routes``
+        {label: {route, category}}}], ``true_supports`` the shape's own count),
         ``mean`` (per column, over the rows that have a value), ``counted`` (those rows),
-        ``per_category``, ``notes`` and the settings.
+        ``per_category``, ``supports`` (:func:`supports_summary`), ``notes`` and the settings.
 
     Raises:
         ModelsEvalError, DatasetError, ModelError: unusable inputs, each on one line.
@@ -444,11 +464,11 @@ def evaluate_models(
                 continue
             if searcher is not None:
                 hit = searcher.nearest(sketch, exclude=(cat, sid))
-                iou[RETRIEVAL], rec["retrieved"] = None, None
+                iou[RETRIEVAL], supports[RETRIEVAL], rec["retrieved"] = None, None, None
                 if hit is not None:
                     rmesh = searcher.world_mesh(hit, cams[v])
-                    rvox = solid_voxels(rmesh, voxel_resolution, voxel_surface)
-                    iou[RETRIEVAL], supports[RETRIEVAL] = _iou(rvox, gt_vox), support_count(rvox)
+                    iou[RETRIEVAL] = _iou(solid_voxels(rmesh, voxel_resolution, voxel_surface), gt_vox)
+                    supports[RETRIEVAL] = searcher.supports(hit, voxel_resolution, voxel_surface)
                     rcat, rsid = searcher.keys[hit]
                     rec["retrieved"] = f"{rcat}/{rsid} view {searcher.views[hit]}"
             per_view.append(rec)
@@ -456,7 +476,7 @@ def evaluate_models(
         rows.append({
             "category": cat, "shape_id": sid, "split": shape_split, "views": [r["view"] for r in per_view],
             "iou": {c: template_iou if c == TEMPLATE else _mean(r["iou"].get(c) for r in per_view) for c in columns},
-            "per_view": per_view, "supports": gt_supports,
+            "per_view": per_view, "true_supports": gt_supports,
         })
     bar.close()
     if elevation is not None and not rows:
@@ -510,22 +530,23 @@ def supports_summary(rows: list[dict], columns: list[str], template_supports: in
 
     Returns:
         {category: {"shapes": shapes in the category, "standing": those on two or more supports, "drawings": their
-        drawings, column: {"separate": share or None, "same": share or None}}}; a column without a count for a drawing
-        (a retrieval miss) is left out of that drawing's shares; the template sphere's count is the same for every drawing.
+        drawings, "columns": {column: {"separate": share or None, "same": share or None}}}}; a column without a count
+        for a drawing (a retrieval miss) is left out of that drawing's shares; the template sphere's count is the same
+        for every drawing. ``same`` is strict: a bench on six slats' feet drawn as two end panels has two.
     """
     out: dict = {}
     for cat in sorted({r["category"] for r in rows}):
         rs = [r for r in rows if r["category"] == cat]
-        standing = [r for r in rs if r["supports"] >= 2]
-        entry: dict = {"shapes": len(rs), "standing": len(standing),
-                       "drawings": sum(len(r["per_view"]) for r in standing)}
+        standing = [r for r in rs if r["true_supports"] >= 2]
+        shares: dict = {}
         for c in columns:
-            pairs = [(r["supports"], template_supports if c == TEMPLATE else v["supports"].get(c))
+            pairs = [(r["true_supports"], template_supports if c == TEMPLATE else v["supports"].get(c))
                      for r in standing for v in r["per_view"]]
             pairs = [(g, p) for g, p in pairs if p is not None]
-            entry[c] = {"separate": _mean(float(p >= 2) for _, p in pairs),
-                        "same": _mean(float(p == g) for g, p in pairs)}
-        out[cat] = entry
+            shares[c] = {"separate": _mean(float(p >= 2) for _, p in pairs),
+                         "same": _mean(float(p == g) for g, p in pairs)}
+        out[cat] = {"shapes": len(rs), "standing": len(standing),
+                    "drawings": sum(len(r["per_view"]) for r in standing), "columns": shares}
     return out
 
 
@@ -534,7 +555,7 @@ def _cell(x) -> str:
 
 
 def markdown_report(result: dict) -> str:
-    """The per-mesh table with the means row, and a line on each floor."""
+    """The per-mesh table with the means row, the paired differences, a line on each floor and the supports table."""
     cols = result["columns"]
     aug = f", hand-drawn at strength {result['augment_strength']:g}" if result["augment_strength"] > 0 else ""
     if result.get("sketch_path", "stored") != "stored":
@@ -575,7 +596,8 @@ def markdown_report(result: dict) -> str:
         for cat, e in sup.items():
             if e["standing"]:
                 lines.append(f"| {cat} | {e['standing']} of {e['shapes']} | "
-                             + " | ".join(f"{_cell(e[c]['separate'])} / {_cell(e[c]['same'])}" for c in cols) + " |")
+                             + " | ".join(f"{_cell(e['columns'][c]['separate'])} / {_cell(e['columns'][c]['same'])}"
+                                         for c in cols) + " |")
     lines += [f"note: {n}" for n in result["notes"]]
     return "\n".join(lines) + "\n"
 
