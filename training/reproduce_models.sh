@@ -327,6 +327,10 @@ RUNS38=${RUNS38:-runs/v38}
 OUT38=${OUT38:-out/v38}
 DATA38N=${DATA38N:-data/legs1250v4}
 DATA38=${DATA38:-data/legs2100v4}
+RUNS39=${RUNS39:-runs/v39}
+OUT39=${OUT39:-out/v39}
+DATA39N=${DATA39N:-data/legs1550v4}
+DATA39=${DATA39:-data/legs2900v4}
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -2325,6 +2329,63 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     legs-v38)  # the specialist's fourth round, every step in order (about 80 min on 2 cores, one step at a time)
       for s2 in data-v38 predictor-v38-legs-more3 check-legs-v38 routed3-v38 eval-route3-clean-v38 eval-route3-side-v38 \
           eval-route3-strong-v38 gallery-route-v38 supports-v38; do
+        step "$s2"
+      done ;;
+    data-v39)  # DATA39N (bench, chair and table shapes 1550-1849, train split, 4 grid views each) merged with DATA38 into
+      # DATA39, and the fifth generator's images (DATA38's rows copied, --reuse); resumes
+      [ -f "$DATA38/.cache/generated/normals16_mirror/info.json" ] || step data-v38
+      sketchmesh data --source procedural --first-shape 1550 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA39N"
+      sketchmesh data merge "$DATA39" "$DATA38" "$DATA39N"
+      sketchmesh data generated "$DATA39" --models "$OUT8/models_fifth" --name normals16 --workers 2 --reuse "$DATA38"
+      sketchmesh data generated "$DATA39" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 \
+        --reuse "$DATA38" ;;
+    predictor-v39-legs-more4)  # predictor-v38-legs-more3's run trained on a fifth time along a new cosine (the same rate and
+      # recipe) on DATA39 (300 unseen shapes a category more again), into RUNS39/legs_more4; V36_ITERS [3000], V36_MINUTES
+      # [65] at most; resumes
+      [ -f "$DATA39/.cache/generated/normals16_mirror/info.json" ] || step data-v39
+      [ -f "$RUNS38/legs_more3/config.json" ] || step predictor-v38-legs-more3
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA39 recipe20 "$RUNS38/legs_more3" "$RUNS39/legs_more4" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    check-legs-v39)  # predictor-v39-legs-more4's run exported as the specialist is (OUT39/models_legs_more4) and scored
+      # beside the twenty-first and the last two rounds on the choice set (DATA36C) as check-legs-v38, into OUT39/check_legs
+      rm -rf "$OUT39/models_legs_more4"
+      sketchmesh export "$RUNS39/legs_more4" -o "$OUT39/models_legs_more4" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT39/models_legs_more4/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT37/models_legs_more2" --models "$OUT38/models_legs_more3" \
+        --models "$OUT39/models_legs_more4" --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 \
+        --out "$OUT39/check_legs" ;;
+    routed4-v39)  # OUT39/models_routed4: models_routed3 with predictor-v39-legs-more4's specialist in its place
+      [ -f "$OUT39/models_legs_more4/mesh_predictor.onnx" ] || step check-legs-v39
+      rm -rf "$OUT39/models_routed4"; cp -r "$OUT38/models_routed3" "$OUT39/models_routed4"
+      cp "$OUT39/models_legs_more4/mesh_predictor.onnx" "$OUT39/models_routed4/mesh_predictor_legged.onnx" ;;
+    eval-route4-clean-v39|eval-route4-side-v39|eval-route4-strong-v39)  # models_routed4 on the same drawings as
+      # eval-route-*-v37 to eval-route3-*-v38, into OUT39/route4_<case>; its means beside theirs and its paired differences
+      local c=${1#eval-route4-}; c=${c%-v39}
+      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
+      [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
+      [ -f "$OUT38/route3_$c/eval_models_test.json" ] || step "eval-route3-$c-v38"
+      sketchmesh eval --models "$OUT39/models_routed4" --mirror-only --data "$DATA36A" --split test --views 0 \
+        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT39/route4_$c" > /dev/null
+      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" \
+        "$OUT38/route3_$c/eval_models_test.json" "$OUT39/route4_$c/eval_models_test.json" ;;
+    gallery-route-v39)  # the gallery of models_routed4 (as gallery-route-v38): OUT39/gallery_routed4{,_side}.png
+      [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
+      sketchmesh gallery --data "$DATA36A" --models "$OUT39/models_routed4" --mirror-average --threads 2 -o "$OUT39/gallery_routed4.png"
+      sketchmesh gallery --data "$DATA36A" --models "$OUT39/models_routed4" --mirror-average --elevation 0 --azimuth 90 \
+        --threads 2 -o "$OUT39/gallery_routed4_side.png" ;;
+    supports-v39)  # supports-v38 with models_routed4 in place of models_routed3, into OUT39/supports
+      [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT39/models_routed4" --mirror-only --data "$DATA36T" \
+        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT39/supports" ;;
+    ship-v39)  # models_routed4's specialist becomes the bundled one (the other three files unchanged)
+      [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
+      local f
+      for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT39/models_routed4/$f" "assets/models/$f"; done
+      cp "$OUT39/models_routed4/mesh_predictor_legged.onnx" assets/models/ ;;
+    legs-v39)  # the specialist's fifth round, every step in order (after legs-v38; about 85 min on 2 cores)
+      for s2 in data-v39 predictor-v39-legs-more4 check-legs-v39 routed4-v39 eval-route4-clean-v39 eval-route4-side-v39 \
+          eval-route4-strong-v39 gallery-route-v39 supports-v39; do
         step "$s2"
       done ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
