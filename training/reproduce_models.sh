@@ -374,6 +374,33 @@ drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants fold
   sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
+legs_check() {  # the specialist run $2 exported as the app loads it (float16 weights, beside the bundled generator) into
+  # $1/models_$3, then the model folders $4... (the new one last) scored on the choice set (DATA36C, 129 unseen legged
+  # shapes x 4 views) through the app's engine, mirror averaged, into $1/check_legs
+  local out=$1 run=$2 name=$3 models=() m; shift 3
+  rm -rf "$out/models_$name"
+  sketchmesh export "$run" -o "$out/models_$name" --quantize fp16
+  cp "$OUT36/models_twentyfirst/generator.onnx" "$out/models_$name/"
+  for m in "$@" "$out/models_$name"; do models+=(--models "$m"); done
+  sketchmesh eval "${models[@]}" --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 \
+    --out "$out/check_legs"
+}
+
+route_eval() {  # a routed folder $2 on every test sketch of case $1 (clean, side or strong: DATA36A's test split at all 48
+  # views, canvas path, mirror averaged, no refinement) into $3; then versus_json of the earlier results $4... and it
+  local c=$1 folder=$2 out=$3; shift 3
+  local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
+  sketchmesh eval --models "$folder" --mirror-only --data "$DATA36A" --split test --views 0 \
+    --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$out" > /dev/null
+  versus_json "$@" "$out/eval_models_test.json"
+}
+
+route_gallery() {  # the gallery of a model folder $1 (one test shape a category, from 30 degrees and from the side, mirror
+  # averaged): $2.png and $2_side.png
+  sketchmesh gallery --data "$DATA36A" --models "$1" --mirror-average --threads 2 -o "$2.png"
+  sketchmesh gallery --data "$DATA36A" --models "$1" --mirror-average --elevation 0 --azimuth 90 --threads 2 -o "$2_side.png"
+}
+
 versus_json() {  # eval JSONs of the same drawings (mirror only), the last one a single column: every column's 13-category
   # mean (+- one standard error, the test shapes as the draws) and the last column's paired difference from each earlier one
   python3 - "$@" <<'PY'
@@ -2288,11 +2315,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     check-legs-v38)  # predictor-v38-legs-more3's run exported as the specialist is (float16 weights, beside the bundled
       # generator; OUT38/models_legs_more3) and scored against the bundled specialist (the third round) on the choice set
       # (DATA36C, 129 unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT38/check_legs
-      rm -rf "$OUT38/models_legs_more3"
-      sketchmesh export "$RUNS38/legs_more3" -o "$OUT38/models_legs_more3" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT38/models_legs_more3/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT37/models_legs_more2" --models "$OUT38/models_legs_more3" \
-        --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT38/check_legs" ;;
+      legs_check "$OUT38" "$RUNS38/legs_more3" legs_more3 "$OUT36/models_twentyfirst" "$OUT37/models_legs_more2" ;;
     routed3-v38)  # OUT38/models_routed3: the bundled folder with predictor-v38-legs-more3's specialist in its place
       [ -f "$OUT38/models_legs_more3/mesh_predictor.onnx" ] || step check-legs-v38
       rm -rf "$OUT38/models_routed3"; mkdir -p "$OUT38"; cp -r "$OUT37/models_routed2" "$OUT38/models_routed3"
@@ -2301,19 +2324,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # eval-route-*-v37 and eval-route2-*-v37 (the eval is deterministic), into OUT38/route3_<case>; its means beside
       # theirs (the twenty-first alone, the first routed folder, the bundled one) and its paired differences from each
       local c=${1#eval-route3-}; c=${c%-v38}
-      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
       [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
       [ -f "$OUT37/route2_$c/eval_models_test.json" ] || step "eval-route2-$c-v37"
-      sketchmesh eval --models "$OUT38/models_routed3" --mirror-only --data "$DATA36A" --split test --views 0 \
-        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT38/route3_$c" > /dev/null
-      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" \
-        "$OUT38/route3_$c/eval_models_test.json" ;;
+      route_eval "$c" "$OUT38/models_routed3" "$OUT38/route3_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT37/route2_$c/eval_models_test.json" ;;
     gallery-route-v38)  # the gallery of eval-route3's folder (one test shape a category, from 30 degrees and from the
       # side, mirror averaged): OUT38/gallery_routed3{,_side}.png, beside OUT37's
       [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
-      sketchmesh gallery --data "$DATA36A" --models "$OUT38/models_routed3" --mirror-average --threads 2 -o "$OUT38/gallery_routed3.png"
-      sketchmesh gallery --data "$DATA36A" --models "$OUT38/models_routed3" --mirror-average --elevation 0 --azimuth 90 \
-        --threads 2 -o "$OUT38/gallery_routed3_side.png" ;;
+      route_gallery "$OUT38/models_routed3" "$OUT38/gallery_routed3" ;;
     supports-v38)  # how the meshes stand (`eval --models`' supports table: pieces in the lowest quarter of the height,
       # metrics.support_count): the twenty-first pair and models_routed3, mirror averaged as the app runs them, on
       # DATA36T's legged test shapes at 12 views each (canvas path), with retrieval among DATA36L's unseen shapes of all
@@ -2349,12 +2367,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         "${V36_MINUTES:-65}" 2 ;;
     check-legs-v39)  # predictor-v39-legs-more4's run exported as the specialist is (OUT39/models_legs_more4) and scored
       # beside the twenty-first and the last two rounds on the choice set (DATA36C) as check-legs-v38, into OUT39/check_legs
-      rm -rf "$OUT39/models_legs_more4"
-      sketchmesh export "$RUNS39/legs_more4" -o "$OUT39/models_legs_more4" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT39/models_legs_more4/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT37/models_legs_more2" --models "$OUT38/models_legs_more3" \
-        --models "$OUT39/models_legs_more4" --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 \
-        --out "$OUT39/check_legs" ;;
+      legs_check "$OUT39" "$RUNS39/legs_more4" legs_more4 "$OUT36/models_twentyfirst" "$OUT37/models_legs_more2" \
+        "$OUT38/models_legs_more3" ;;
     routed4-v39)  # OUT39/models_routed4: models_routed3 with predictor-v39-legs-more4's specialist in its place
       [ -f "$OUT39/models_legs_more4/mesh_predictor.onnx" ] || step check-legs-v39
       rm -rf "$OUT39/models_routed4"; cp -r "$OUT38/models_routed3" "$OUT39/models_routed4"
@@ -2362,18 +2376,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     eval-route4-clean-v39|eval-route4-side-v39|eval-route4-strong-v39)  # models_routed4 on the same drawings as
       # eval-route-*-v37 to eval-route3-*-v38, into OUT39/route4_<case>; its means beside theirs and its paired differences
       local c=${1#eval-route4-}; c=${c%-v39}
-      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
       [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
       [ -f "$OUT38/route3_$c/eval_models_test.json" ] || step "eval-route3-$c-v38"
-      sketchmesh eval --models "$OUT39/models_routed4" --mirror-only --data "$DATA36A" --split test --views 0 \
-        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT39/route4_$c" > /dev/null
-      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json" \
-        "$OUT38/route3_$c/eval_models_test.json" "$OUT39/route4_$c/eval_models_test.json" ;;
+      route_eval "$c" "$OUT39/models_routed4" "$OUT39/route4_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT37/route2_$c/eval_models_test.json" "$OUT38/route3_$c/eval_models_test.json" ;;
     gallery-route-v39)  # the gallery of models_routed4 (as gallery-route-v38): OUT39/gallery_routed4{,_side}.png
       [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
-      sketchmesh gallery --data "$DATA36A" --models "$OUT39/models_routed4" --mirror-average --threads 2 -o "$OUT39/gallery_routed4.png"
-      sketchmesh gallery --data "$DATA36A" --models "$OUT39/models_routed4" --mirror-average --elevation 0 --azimuth 90 \
-        --threads 2 -o "$OUT39/gallery_routed4_side.png" ;;
+      route_gallery "$OUT39/models_routed4" "$OUT39/gallery_routed4" ;;
     supports-v39)  # supports-v38 with models_routed4 in place of models_routed3, into OUT39/supports
       [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
       sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT39/models_routed4" --mirror-only --data "$DATA36T" \
@@ -2466,11 +2475,7 @@ PY
     check-legs-v37)  # predictor-v37-legs-more2's run exported as the specialist is (float16 weights, beside the bundled
       # generator; OUT37/models_legs_more2) and scored against the bundled specialist on the choice set (DATA36C, 129
       # unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT37/check_legs
-      rm -rf "$OUT37/models_legs_more2"
-      sketchmesh export "$RUNS37/legs_more2" -o "$OUT37/models_legs_more2" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT37/models_legs_more2/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT36/models_legs_more" --models "$OUT37/models_legs_more2" \
-        --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT37/check_legs" ;;
+      legs_check "$OUT37" "$RUNS37/legs_more2" legs_more2 "$OUT36/models_twentyfirst" "$OUT36/models_legs_more" ;;
     routed2-v37)  # OUT37/models_routed2: the routed folder with predictor-v37-legs-more2's specialist in place of the bundled one
       [ -f "$OUT37/models_legs_more2/mesh_predictor.onnx" ] || step check-legs-v37
       rm -rf "$OUT37/models_routed2"; cp -r "$OUT37/models_routed" "$OUT37/models_routed2"
@@ -2479,12 +2484,8 @@ PY
       # eval-route-*-v37 (the eval is deterministic), into OUT37/route2_<case>; its means beside that step's two columns,
       # and its paired differences from each
       local c=${1#eval-route2-}; c=${c%-v37}
-      local extra=(); [ "$c" = side ] && extra=(--elevation 0); [ "$c" = strong ] && extra=(--augment-strength 1.0)
       [ -f "$OUT37/models_routed2/router.onnx" ] || step routed2-v37
-      sketchmesh eval --models "$OUT37/models_routed2" --mirror-only --data "$DATA36A" --split test --views 0 \
-        --sketch-path canvas --no-retrieval "${extra[@]}" --threads 2 --quiet --out "$OUT37/route2_$c" > /dev/null
-      versus_json "$OUT37/route_$c/eval_models_test.json" "$OUT37/route2_$c/eval_models_test.json"
-      ;;
+      route_eval "$c" "$OUT37/models_routed2" "$OUT37/route2_$c" "$OUT37/route_$c/eval_models_test.json" ;;
     router-cost-v37)  # what the router adds to each drawing, and what loading the specialist costs once (run it alone)
       python3 - "$OUT37/models_routed" <<'PY'
 # 2 threads, p50 of 500 router passes (after 20 to warm up) and of 5 loads
