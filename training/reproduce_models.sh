@@ -2344,7 +2344,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local f
       for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT38/models_routed3/$f" "assets/models/$f"; done
       cp "$OUT38/models_routed3/mesh_predictor_legged.onnx" assets/models/ ;;
-    legs-v38)  # the specialist's fourth round, every step in order (about 80 min on 2 cores, one step at a time)
+    legs-v38)  # the specialist's fourth round, every step in order (about 65 min on 2 cores, one step at a time)
       for s2 in data-v38 predictor-v38-legs-more3 check-legs-v38 routed3-v38 eval-route3-clean-v38 eval-route3-side-v38 \
           eval-route3-strong-v38 gallery-route-v38 supports-v38; do
         step "$s2"
@@ -2392,7 +2392,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local f
       for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT39/models_routed4/$f" "assets/models/$f"; done
       cp "$OUT39/models_routed4/mesh_predictor_legged.onnx" assets/models/ ;;
-    legs-v39)  # the specialist's fifth round, every step in order (after legs-v38; about 85 min on 2 cores)
+    legs-v39)  # the specialist's fifth round, every step in order (after legs-v38; about 70 min on 2 cores)
       for s2 in data-v39 predictor-v39-legs-more4 check-legs-v39 routed4-v39 eval-route4-clean-v39 eval-route4-side-v39 \
           eval-route4-strong-v39 gallery-route-v39 supports-v39; do
         step "$s2"
