@@ -395,6 +395,11 @@ route_eval() {  # a routed folder $2 on every test sketch of case $1 (clean, sid
   versus_json "$@" "$out/eval_models_test.json"
 }
 
+routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as mesh_predictor_legged.onnx
+  rm -rf "$3"; mkdir -p "$(dirname "$3")"; cp -r "$1" "$3"
+  cp "$2/mesh_predictor.onnx" "$3/mesh_predictor_legged.onnx"
+}
+
 route_gallery() {  # the gallery of a model folder $1 (one test shape a category, from 30 degrees and from the side, mirror
   # averaged): $2.png and $2_side.png
   sketchmesh gallery --data "$DATA36A" --models "$1" --mirror-average --threads 2 -o "$2.png"
@@ -2318,8 +2323,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       legs_check "$OUT38" "$RUNS38/legs_more3" legs_more3 "$OUT36/models_twentyfirst" "$OUT37/models_legs_more2" ;;
     routed3-v38)  # OUT38/models_routed3: the bundled folder with predictor-v38-legs-more3's specialist in its place
       [ -f "$OUT38/models_legs_more3/mesh_predictor.onnx" ] || step check-legs-v38
-      rm -rf "$OUT38/models_routed3"; mkdir -p "$OUT38"; cp -r "$OUT37/models_routed2" "$OUT38/models_routed3"
-      cp "$OUT38/models_legs_more3/mesh_predictor.onnx" "$OUT38/models_routed3/mesh_predictor_legged.onnx" ;;
+      routed_swap "$OUT37/models_routed2" "$OUT38/models_legs_more3" "$OUT38/models_routed3" ;;
     eval-route3-clean-v38|eval-route3-side-v38|eval-route3-strong-v38)  # models_routed3 on the same drawings as
       # eval-route-*-v37 and eval-route2-*-v37 (the eval is deterministic), into OUT38/route3_<case>; its means beside
       # theirs (the twenty-first alone, the first routed folder, the bundled one) and its paired differences from each
@@ -2371,8 +2375,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         "$OUT38/models_legs_more3" ;;
     routed4-v39)  # OUT39/models_routed4: models_routed3 with predictor-v39-legs-more4's specialist in its place
       [ -f "$OUT39/models_legs_more4/mesh_predictor.onnx" ] || step check-legs-v39
-      rm -rf "$OUT39/models_routed4"; cp -r "$OUT38/models_routed3" "$OUT39/models_routed4"
-      cp "$OUT39/models_legs_more4/mesh_predictor.onnx" "$OUT39/models_routed4/mesh_predictor_legged.onnx" ;;
+      routed_swap "$OUT38/models_routed3" "$OUT39/models_legs_more4" "$OUT39/models_routed4" ;;
     eval-route4-clean-v39|eval-route4-side-v39|eval-route4-strong-v39)  # models_routed4 on the same drawings as
       # eval-route-*-v37 to eval-route3-*-v38, into OUT39/route4_<case>; its means beside theirs and its paired differences
       local c=${1#eval-route4-}; c=${c%-v39}
