@@ -299,6 +299,13 @@ def _json_meta(path: Path, meta: dict[str, str], key: str):
         raise ModelError(f"{path}: router metadata {key!r} is not JSON: {meta[key][:80]!r}") from None
 
 
+def is_specialist_file_name(name) -> bool:
+    """Whether a router may send drawings to ``name``: a bare ``.onnx`` file name in the model folder, not one of the
+    folder's own networks (generator, general predictor, router)."""
+    return (isinstance(name, str) and Path(name).name == name and name.endswith(".onnx")
+            and name not in (C.GENERATOR_FILE, C.PREDICTOR_FILE, C.ROUTER_FILE))
+
+
 def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedModel:
     """Load and validate ``router.onnx``: ``normals`` (N, 3, 64, 64) -> ``probabilities`` (N, K), with its
     ``categories``, ``routes`` and ``route_threshold`` metadata (:mod:`engine.contract`). Every specialist
@@ -320,8 +327,7 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
         raise ModelError(f"{path}: router routes must name at least one specialist file, got {routes!r}")
     seen: set = set()
     for name, group in routes.items():
-        if (not isinstance(name, str) or Path(name).name != name or not name.endswith(".onnx")
-                or name in (C.GENERATOR_FILE, C.PREDICTOR_FILE, C.ROUTER_FILE)):
+        if not is_specialist_file_name(name):
             raise ModelError(f"{path}: router route {name!r} must be another .onnx file name in the same folder")
         if (not isinstance(group, list) or not group or not all(isinstance(c, str) and c in cats for c in group)
                 or len(set(group)) != len(group) or seen & set(group)):

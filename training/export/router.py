@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from engine import contract as C
+from engine.models import is_specialist_file_name
 from training._torch import require_torch
 from training.loop.router import load_router_run
 from training.model.router import RouterProbabilities
@@ -29,8 +30,7 @@ def parse_routes(specs: list[str], categories: list[str]) -> dict[str, list[str]
         group = [c for c in cats.split(",") if c]
         if not sep or not name or not group:
             raise ValueError(f"--route {spec!r}: expected FILE=CATEGORY[,CATEGORY...]")
-        if Path(name).name != name or not name.endswith(".onnx") or name in (C.GENERATOR_FILE, C.PREDICTOR_FILE,
-                                                                              C.ROUTER_FILE):
+        if not is_specialist_file_name(name):
             raise ValueError(f"--route {spec!r}: FILE must be another .onnx file name in the model folder (not "
                              f"{C.GENERATOR_FILE}, {C.PREDICTOR_FILE} or {C.ROUTER_FILE})")
         unknown = [c for c in group if c not in categories]
