@@ -1,7 +1,8 @@
 """``sketchmesh bench engine``: per-stage latency of the inference pipeline, and what int8 costs in accuracy.
 
 For each variant -- ``fp32`` (the models as given), ``int8-predictor`` (only the mesh predictor
-dynamically quantised) and ``int8`` (both) -- every stage (preprocess, generator, downsample,
+dynamically quantised), ``int8`` (both) and ``int8w`` (every network's large weights stored in int8,
+computed in float32: :func:`compact_model`; a quarter of float32's bytes at float32's speed) -- every stage (preprocess, generator, downsample,
 predictor, assemble, export, total) is timed over ``runs`` predictions with the cache off, and
 the variant's error against fp32 on the same sketches is measured: normal-image mean absolute
 error (in encoded [0, 1] units) and per-vertex distance mean / max (in units of the normalised
@@ -16,6 +17,7 @@ Quantisation needs the ``onnx`` package (a dev/train extra); without it only fp3
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 import platform
@@ -106,6 +108,120 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
     return dst
 
 
+INT8W_MIN_ELEMENTS = 16384
+"""Conv / Gemm weights at least this large are stored in int8 by :func:`compact_model` (smaller ones, biases and
+other operators' constants are kept as they are)."""
+
+
+def _int8_weights(model) -> int:
+    """In place: every Conv weight and Gemm B of at least :data:`INT8W_MIN_ELEMENTS` values, float32 or float16 behind
+    a ``Cast``, becomes int8 with one float32 scale per output channel (symmetric, the channel's largest magnitude to
+    127), behind ``Cast`` to float32 and ``Mul`` by the scales producing the old name. Both nodes read only
+    initialisers, so ONNX Runtime folds them when it loads the model: the file holds a byte per weight, the arithmetic
+    stays float32. A weight feeding anything else, or several nodes, is left alone: a basis multiplied straight into
+    vertex positions (the predictor's ``MatMul``) carries its rounding into the mesh. Returns how many were stored."""
+    from onnx import TensorProto, helper, numpy_helper
+
+    graph = model.graph
+    inits = {i.name: i for i in graph.initializer}
+    casts = {n.output[0]: n for n in graph.node if n.op_type == "Cast" and len(n.input) == 1 and n.input[0] in inits
+             and inits[n.input[0]].data_type == TensorProto.FLOAT16
+             and any(a.name == "to" and a.i == TensorProto.FLOAT for a in n.attribute)}
+    users: dict[str, list] = {}
+    for n in graph.node:
+        for i in n.input:
+            users.setdefault(i, []).append(n)
+    inputs = {i.name for i in graph.input}  # an initialiser listed as a graph input may be overridden: left alone
+    taken = set(inits) | {o for n in graph.node for o in n.output} | inputs
+    new_nodes, new_inits, dropped, done = [], [], set(), 0
+    for name, nodes in users.items():
+        if len(nodes) != 1 or (name not in inits and name not in casts) or name in inputs:
+            continue
+        n = nodes[0]
+        if n.op_type == "Conv" and list(n.input).index(name) == 1:
+            axis = 0
+        elif n.op_type == "Gemm" and list(n.input).index(name) == 1:
+            axis = 0 if any(a.name == "transB" and a.i for a in n.attribute) else 1
+        else:
+            continue
+        src = casts[name].input[0] if name in casts else name
+        if (len(users.get(src, ())) != 1 and src != name) or src in inputs:
+            continue
+        q_name, f_name, s_name = (name + suffix for suffix in ("__int8", "__float", "__scale"))
+        if {q_name, f_name, s_name} & taken:
+            continue
+        w = numpy_helper.to_array(inits[src]).astype(np.float32)
+        if w.size < INT8W_MIN_ELEMENTS or w.ndim < 2 or not np.all(np.isfinite(w)):
+            continue
+        other = tuple(a for a in range(w.ndim) if a != axis)
+        scale = (np.abs(w).max(axis=other, keepdims=True) / 127.0).astype(np.float32)
+        scale = np.where(scale > 0, scale, np.float32(1.0)).astype(np.float32)  # all-zero (or underflowing) channels
+        q = np.clip(np.rint(w / scale), -127, 127).astype(np.int8)
+        new_inits += [numpy_helper.from_array(q, q_name), numpy_helper.from_array(scale, s_name)]
+        new_nodes += [helper.make_node("Cast", [q_name], [f_name], to=TensorProto.FLOAT, name=name + "__cast_int8"),
+                      helper.make_node("Mul", [f_name, s_name], [name], name=name + "__dequantize")]
+        dropped.add(src)
+        if name in casts:
+            dropped.add(name)  # the old Cast node's output, now the Mul's
+        done += 1
+    kept_nodes = [n for n in graph.node if not (n.op_type == "Cast" and n.output[0] in dropped)]
+    kept_inits = [i for i in graph.initializer if i.name not in dropped]
+    del graph.node[:]
+    graph.node.extend(new_nodes + kept_nodes)
+    del graph.initializer[:]
+    graph.initializer.extend(kept_inits + new_inits)
+    return done
+
+
+def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bool = True) -> Path:
+    """Store one model's large Conv / Gemm weights in int8 (:func:`_int8_weights`), computing in float32.
+
+    Unlike :func:`quantize_model` the activations stay float32 and ONNX Runtime runs the same kernels as for the
+    original file, so the time is the original's; each weight moves by at most half a step (its channel's largest
+    magnitude / 254). ConvTranspose weights (a ``pix2pix`` generator's decoder) and MatMul constants stay as stored.
+    Metadata is kept, ``quantization`` set to ``int8-weights``; the result must load in ONNX Runtime. A model with
+    no such weight (a tiny network) is an error, or with ``require=False`` copied as it is.
+
+    Raises:
+        MissingExtraError: the ``onnx`` package is not installed.
+        ModelError: the file cannot be read, has no such weight (``require``), or the result does not load.
+    """
+    try:
+        import onnx
+    except ImportError as exc:
+        raise MissingExtraError(f"int8 weight storage needs the onnx package ({exc}); pip install 'sketchmesh[dev]'") from None
+    src, dst = Path(src), Path(dst)
+    try:
+        model = onnx.load(str(src))
+    except Exception as exc:  # onnx raises DecodeError, OSError, ...
+        raise ModelError(f"{src}: cannot read the ONNX model ({' '.join(str(exc).split())[:200]})") from None
+    if _int8_weights(model) == 0:
+        if not require:
+            from engine.fileio import atomic_write_bytes
+
+            atomic_write_bytes(dst, src.read_bytes())
+            return dst
+        raise ModelError(f"{src}: no Conv or Gemm weight of {INT8W_MIN_ELEMENTS} values or more to store in int8")
+    meta = {p.key: p.value for p in model.metadata_props}
+    meta[C.META_QUANTIZATION] = "int8-weights"
+    del model.metadata_props[:]
+    for k, v in meta.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = k, v
+    data = model.SerializeToString()
+    try:
+        onnx.checker.check_model(model)
+        import onnxruntime as ort
+
+        ort.InferenceSession(data, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # noqa: BLE001 - onnx / onnxruntime raise many types
+        raise ModelError(f"{src}: int8 weight storage gave a model that does not load: {' '.join(str(exc).split())[:300]}") from None
+    from engine.fileio import atomic_write_bytes
+
+    atomic_write_bytes(dst, data)
+    return dst
+
+
 def split_variant(name: str) -> tuple[str, bool]:
     """``"int8+mirror"`` -> ``("int8", True)``: a variant's precision and whether mirror averaging is on."""
     if name not in C.MIRRORED_VARIANTS:
@@ -116,21 +232,32 @@ def split_variant(name: str) -> tuple[str, bool]:
 
 def make_variant(models_dir: Path, variant: str, out_dir: Path) -> Path:
     """A folder holding the models of precision ``variant`` (``fp32`` returns ``models_dir`` itself); a folder
-    already made in ``out_dir`` is reused (a precision and its ``+mirror`` twin share one quantisation)."""
+    already made in ``out_dir`` (marked ``.complete`` when its last file is written) is reused: a precision and its
+    ``+mirror`` twin share one conversion. A routed folder's router is copied and every specialist it names is
+    converted as the predictor is; other files are left out."""
     if variant == "fp32":
         return models_dir
     if variant not in VARIANTS:
         raise SketchInputError(f"unknown variant {variant!r}; choose from {', '.join(VARIANTS)}")
+    from engine.models import load_router
+
     gen, pred = model_paths(models_dir)
     folder = out_dir / variant
-    if all((folder / f).is_file() for f in (C.GENERATOR_FILE, C.PREDICTOR_FILE)):
+    if (folder / ".complete").is_file():
         return folder
     folder.mkdir(parents=True, exist_ok=True)
-    if variant == "int8":
-        quantize_model(gen, folder / C.GENERATOR_FILE)
+    convert = functools.partial(compact_model, require=False) if variant == "int8w" else quantize_model
+    if variant in ("int8", "int8w"):
+        convert(gen, folder / C.GENERATOR_FILE)
     else:
         shutil.copyfile(gen, folder / C.GENERATOR_FILE)
-    quantize_model(pred, folder / C.PREDICTOR_FILE)
+    convert(pred, folder / C.PREDICTOR_FILE)
+    if (models_dir / C.ROUTER_FILE).is_file():  # a routed folder: the router kept, its specialists made as the predictor
+        router = load_router(models_dir / C.ROUTER_FILE, threads=1)
+        shutil.copyfile(models_dir / C.ROUTER_FILE, folder / C.ROUTER_FILE)
+        for name in sorted(router.routes):
+            convert(models_dir / name, folder / name)
+    (folder / ".complete").touch()
     return folder
 
 

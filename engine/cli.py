@@ -73,8 +73,9 @@ def register(commands, bench) -> None:
     b.add_argument("--threads", type=int_in(1, 256), default=None, metavar="N", help="inference threads")
     b.add_argument("--sketch", action="append", metavar="IMAGE", help="sketch image(s) to use (default: bundled samples "
                    "or synthetic sketches)")
-    b.add_argument("--variants", default="fp32,int8-predictor,int8",
-                   help="comma list of fp32, int8-predictor, int8, each optionally with +mirror (mirror averaging on)")
+    b.add_argument("--variants", default="fp32,int8-predictor,int8,int8w",
+                   help="comma list of fp32, int8-predictor, int8, int8w (weights stored in int8, computed in float32), "
+                        "each optionally with +mirror (mirror averaging on)")
     b.add_argument("--json", metavar="PATH", help="write the records as JSON")
     b.set_defaults(func=cmd_bench_engine)
     one_line_errors(b)

@@ -27,7 +27,7 @@ Metadata (``metadata_props`` of each model, all strings)
     ``conventions`` (= CONVENTIONS_ID); the mesh predictor also carries
     ``template_level`` (e.g. "3") and ``template_radius``; the generator carries
     ``base_channels`` and ``generator_arch`` ("resize" or "pix2pix"; absent from exports that
-    predate the option, which are "pix2pix"). ``quantization`` ("none", "int8-dynamic" or "fp16-weights") is optional.
+    predate the option, which are "pix2pix"). ``quantization`` ("none", "int8-dynamic", "fp16-weights" or "int8-weights") is optional.
     The engine only reads the required keys and the predictor's template: the others describe the
     model (the graph itself is what runs) and may be absent.
 """
@@ -69,9 +69,10 @@ META_QUANTIZATION = "quantization"
 META_CATEGORIES = "categories"
 META_ROUTES = "routes"
 META_ROUTE_THRESHOLD = "route_threshold"
-PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8")
+PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8", "int8w")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,
-or with both networks quantised (``sketchmesh bench engine`` / ``bench tradeoff``)."""
+with both networks quantised, or with every network's large weights stored in int8 and computed in
+float32 (``sketchmesh bench engine`` / ``bench tradeoff``)."""
 MIRROR_SUFFIX = "+mirror"
 MIRRORED_VARIANTS = (*PRECISION_VARIANTS, *(v + MIRROR_SUFFIX for v in PRECISION_VARIANTS))
 """Every variant name the benches take: a precision, optionally with the engine's mirror averaging on."""

@@ -105,6 +105,38 @@ def test_fp16_import_is_the_exported_network_with_half_precision_weights(trained
             assert 0 < np.abs(a.numpy() - b.numpy()).max() <= FP16_TOLERANCE
 
 
+def test_int8_stored_weights_import_as_the_file_computes_them(trained, exported, tmp_path):
+    """A predictor whose weights are stored in int8 (engine.bench.compact_model: Cast and Mul by per-channel scales)
+    imports as the function ONNX Runtime computes from that file, to float precision, not as the original."""
+    import onnxruntime as ort
+
+    from engine.bench import compact_model
+
+    data, run = trained
+    folder = tmp_path / "int8w"
+    compact_model(exported["fp16"] / C.PREDICTOR_FILE, folder / C.PREDICTOR_FILE)
+    (folder / C.GENERATOR_FILE).write_bytes((exported["fp16"] / C.GENERATOR_FILE).read_bytes())
+    (rep,) = import_models(folder, tmp_path / "imp", data_dir=str(data), roles=("predictor",))
+    assert rep.quantization == "int8-weights" and rep.max_abs_error <= 1e-4
+    _, models, _ = load_run(tmp_path / "imp" / "predictor")
+    _, original, _ = load_run(run)
+    _, normals = _inputs(data)
+    session = ort.InferenceSession(str(folder / C.PREDICTOR_FILE), providers=["CPUExecutionProvider"])
+    want = session.run(None, {C.PREDICTOR_INPUT: normals.numpy()})
+    with torch.no_grad():
+        got = [t.numpy() for t in models["predictor"](normals)]
+        before = [t.numpy() for t in original["predictor"](normals)]
+    for a, b in zip(got, want):
+        np.testing.assert_allclose(a, b, atol=1e-4)
+    for a, c in zip(got, before):
+        assert np.abs(a - c).max() <= INT8_TOLERANCE
+    # the weights are the file's rounded ones, not the original's: some differ by more than float16 would round
+    orig_sd = original["predictor"].state_dict()
+    moved = [k for k, v in models["predictor"].state_dict().items() if k in orig_sd and v.dtype == torch.float32
+             and v.shape == orig_sd[k].shape and (v - orig_sd[k]).abs().max() > 1e-3 * orig_sd[k].abs().max()]
+    assert moved
+
+
 def test_batch_norms_compute_the_same_function_in_train_mode_on_the_calibration_batch(trained, exported, tmp_path):
     """Train mode normalises with the batch's own statistics: on the calibration batch itself, the imported predictor
     in train mode must give its eval-mode output (what the ONNX file computes), so training starts where it left off."""

@@ -146,6 +146,148 @@ def test_fp16_export_stores_the_predictor_weights_in_half_and_computes_in_float3
     assert np.abs(SketchEngine(q, threads=1).predict(raster).mesh.vertices - ref).max() <= INT8_TOLERANCE
 
 
+def test_int8_weight_storage_rounds_each_channel_to_its_own_scale_and_computes_in_float32(run_dir, tmp_path, exported):
+    """engine.bench.compact_model on a float32 generator and a float16-stored predictor: every stored weight is its
+    channel's largest magnitude / 127 times an integer within half a step of the original, the originals are gone,
+    and ONNX Runtime computes with exactly the stored weights (the same predictor written with q * scale as float32
+    initialisers gives the same mesh)."""
+    from onnx import TensorProto, numpy_helper
+
+    from engine.bench import INT8W_MIN_ELEMENTS, compact_model
+    from engine.pipeline import SketchEngine
+    from training.export.to_onnx import INT8_TOLERANCE
+
+    src = exported / C.GENERATOR_FILE
+    dst = compact_model(src, tmp_path / "g" / C.GENERATOR_FILE)
+    assert _meta(dst)[C.META_QUANTIZATION] == "int8-weights"
+    orig = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(src)).graph.initializer}
+    graph = onnx.load(str(dst)).graph
+    arrays = {i.name: numpy_helper.to_array(i) for i in graph.initializer}
+    stored = [n[: -len("__int8")] for n, a in arrays.items() if a.dtype == np.int8]
+    big = [n for n, a in orig.items() if a.ndim == 4 and a.size >= INT8W_MIN_ELEMENTS]
+    assert stored and sorted(stored) == sorted(big)  # every large Conv weight, nothing else
+    assert all(n not in arrays for n in stored) and dst.stat().st_size < 0.5 * src.stat().st_size
+    for name in stored:
+        q, scale, w = arrays[name + "__int8"], arrays[name + "__scale"], orig[name]
+        assert scale.shape == (w.shape[0],) + (1,) * (w.ndim - 1)
+        np.testing.assert_allclose(scale.ravel(), np.abs(w).reshape(len(w), -1).max(1) / 127, rtol=1e-6)
+        assert np.all(np.abs(q.astype(np.float32) * scale - w) <= scale / 2 * (1 + 1e-5))
+        assert np.all(np.abs(q).reshape(len(q), -1).max(1) == 127)
+    # a float16-stored predictor: the Cast nodes of its stored weights gone, Mul by the scales in their place
+    export_run(run_dir, tmp_path / "half", quantize="fp16")
+    pred = compact_model(tmp_path / "half" / C.PREDICTOR_FILE, tmp_path / "p" / C.PREDICTOR_FILE)
+    pgraph = onnx.load(str(pred)).graph
+    muls = {n.output[0] for n in pgraph.node if n.op_type == "Mul" and n.input[1].endswith("__scale")}
+    assert muls and not any(n.op_type == "Cast" and n.output[0] in muls for n in pgraph.node)
+    assert any(i.data_type == TensorProto.FLOAT16 for i in pgraph.initializer)  # the small ones stay float16
+    raster = np.zeros((256, 256), np.float32)
+    raster[60:200, 120:124] = 1.0
+    (tmp_path / "p" / C.GENERATOR_FILE).write_bytes(src.read_bytes())
+    got = SketchEngine(tmp_path / "p", threads=1).predict(raster).mesh.vertices
+    ref = SketchEngine(exported, threads=1).predict(raster).mesh.vertices
+    assert 0 < np.abs(got - ref).max() <= INT8_TOLERANCE
+    dq = onnx.load(str(tmp_path / "half" / C.PREDICTOR_FILE))
+    by_name = {i.name: i for i in dq.graph.initializer}
+    pa = {i.name: numpy_helper.to_array(i) for i in pgraph.initializer}
+    for n in list(dq.graph.node):  # the stored weights written as float32 initialisers: the same function
+        if n.op_type == "Cast" and n.input[0] in by_name and n.output[0] in muls:
+            dq.graph.node.remove(n)
+            dq.graph.initializer.remove(by_name[n.input[0]])
+            w = pa[n.output[0] + "__int8"].astype(np.float32) * pa[n.output[0] + "__scale"]
+            dq.graph.initializer.append(numpy_helper.from_array(w.astype(np.float32), n.output[0]))
+    (tmp_path / "f").mkdir()
+    onnx.save(dq, str(tmp_path / "f" / C.PREDICTOR_FILE))
+    (tmp_path / "f" / C.GENERATOR_FILE).write_bytes(src.read_bytes())
+    np.testing.assert_allclose(SketchEngine(tmp_path / "f", threads=1).predict(raster).mesh.vertices, got, atol=1e-5)
+    # bad input is a ModelError naming the file, not a traceback
+    (tmp_path / "bad.onnx").write_bytes(b"not a model")
+    with pytest.raises(ModelError, match="cannot read"):
+        compact_model(tmp_path / "bad.onnx", tmp_path / "bad_out.onnx")
+
+
+def test_int8_weight_storage_by_operator_layout_and_what_it_leaves_alone(tmp_path):
+    """A hand-built graph: a Gemm with B as (K, N) (transB=0: one scale per column), one with B as (N, K) (transB=1: per
+    row), a weight shared by two nodes, a weight that is also a graph input, a small one and a MatMul constant. Only the
+    first two are stored, each rounded within half its own channel's step; the output is numpy's with those weights."""
+    import onnxruntime as ort
+    from onnx import TensorProto, helper, numpy_helper
+
+    from engine.bench import INT8W_MIN_ELEMENTS, compact_model
+
+    rng = np.random.default_rng(0)
+    k = n = 128
+    assert k * n >= INT8W_MIN_ELEMENTS
+    col_scaled = rng.normal(size=(k, n)).astype(np.float32) * np.logspace(-3, 1, n, dtype=np.float32)  # columns differ
+    row_scaled = rng.normal(size=(n, k)).astype(np.float32) * np.logspace(-3, 1, n, dtype=np.float32)[:, None]
+    shared, as_input, small, basis = (rng.normal(size=s).astype(np.float32) for s in ((k, n), (k, n), (8, 8), (k, n)))
+    inits = [numpy_helper.from_array(a, name) for a, name in ((col_scaled, "A"), (row_scaled, "B"), (shared, "S"),
+                                                              (as_input, "I"), (small, "T"), (basis, "M"))]
+    nodes = [helper.make_node("Gemm", ["x", "A"], ["a"]),
+             helper.make_node("Gemm", ["a", "B"], ["b"], transB=1),
+             helper.make_node("Gemm", ["b", "S"], ["c"]),
+             helper.make_node("Gemm", ["c", "S"], ["d"]),
+             helper.make_node("Gemm", ["d", "I"], ["e"]),
+             helper.make_node("MatMul", ["e", "M"], ["y"])]
+    graph = helper.make_graph(nodes, "g", [helper.make_tensor_value_info("x", TensorProto.FLOAT, [2, k]),
+                                           helper.make_tensor_value_info("I", TensorProto.FLOAT, [k, n])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [2, n])], initializer=inits)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    src = tmp_path / "m.onnx"
+    onnx.save(model, str(src))
+    dst = compact_model(src, tmp_path / "c.onnx")
+    arrays = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(dst)).graph.initializer}
+    assert sorted(n for n, a in arrays.items() if a.dtype == np.int8) == ["A__int8", "B__int8"]
+    assert arrays["A__scale"].shape == (1, n) and arrays["B__scale"].shape == (n, 1)
+    for name, w in (("A", col_scaled), ("B", row_scaled)):
+        step = arrays[name + "__scale"]
+        assert np.all(np.abs(arrays[name + "__int8"] * step - w) <= step / 2 * (1 + 1e-5))
+    x = rng.normal(size=(2, k)).astype(np.float32)
+    a_q, b_q = (arrays[m + "__int8"].astype(np.float32) * arrays[m + "__scale"] for m in "AB")
+    want = ((x @ a_q) @ b_q.T @ shared @ shared @ as_input) @ basis
+    got = ort.InferenceSession(str(dst), providers=["CPUExecutionProvider"]).run(None, {"x": x, "I": as_input})[0]
+    np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-4 * np.abs(want).max())
+    with pytest.raises(ModelError, match="no Conv or Gemm weight"):  # nothing to store: said, not a silent copy
+        onnx.save(helper.make_model(helper.make_graph(nodes[-1:], "g", [
+            helper.make_tensor_value_info("e", TensorProto.FLOAT, [2, k])], [
+            helper.make_tensor_value_info("y", TensorProto.FLOAT, [2, n])], initializer=inits[-1:]),
+            opset_imports=[helper.make_opsetid("", 17)]), str(tmp_path / "mm.onnx"))
+        compact_model(tmp_path / "mm.onnx", tmp_path / "mm_c.onnx")
+
+
+def test_precision_variants_keep_a_routed_folders_router_and_convert_its_specialist(tmp_path, exported):
+    """make_variant on a routed folder: the router copied byte for byte, the specialist it names converted as the
+    predictor, a stray .onnx left out; the folder is made once and reused; the engine routes with it."""
+    import shutil
+
+    from engine.bench import make_variant
+    from engine.pipeline import SketchEngine
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from onnx_fixtures import make_router, write_model
+
+    folder = tmp_path / "routed"
+    shutil.copytree(exported, folder)
+    shutil.copyfile(exported / C.PREDICTOR_FILE, folder / "mesh_predictor_legged.onnx")
+    (folder / "old_notes.onnx").write_bytes(b"not a model")  # neither a contract file nor routed to
+    write_model(make_router([0.05, 0.05, 0.9]), folder / C.ROUTER_FILE)
+    raster = np.zeros((256, 256), np.float32)
+    raster[60:200, 120:124] = 1.0
+    for variant, quant in (("int8w", "int8-weights"), ("int8-predictor", "int8-dynamic")):
+        v = make_variant(folder, variant, tmp_path / "variants")
+        assert sorted(p.name for p in v.glob("*.onnx")) == sorted(
+            [C.GENERATOR_FILE, C.PREDICTOR_FILE, C.ROUTER_FILE, "mesh_predictor_legged.onnx"])
+        assert (v / C.ROUTER_FILE).read_bytes() == (folder / C.ROUTER_FILE).read_bytes()
+        assert _meta(v / "mesh_predictor_legged.onnx")[C.META_QUANTIZATION] == quant
+        stamp = (v / "mesh_predictor_legged.onnx").stat().st_mtime_ns
+        (folder / "mesh_predictor_legged.onnx").rename(folder / "moved.onnx")  # a rebuild would now fail
+        assert make_variant(folder, variant, tmp_path / "variants") == v
+        assert (v / "mesh_predictor_legged.onnx").stat().st_mtime_ns == stamp
+        (folder / "moved.onnx").rename(folder / "mesh_predictor_legged.onnx")
+        pred = SketchEngine(v, threads=1).predict(raster)
+        assert pred.route == "mesh_predictor_legged.onnx" and np.all(np.isfinite(pred.mesh.vertices))
+
+
 def test_int8_all_export_quantizes_both_networks(run_dir, tmp_path, exported):
     from engine.pipeline import SketchEngine
 

@@ -270,7 +270,8 @@ def register(commands, bench) -> None:
                    help="a folder of exported models and its label (repeat)")
     t.add_argument("--precisions", nargs="+", default=["fp32"],
                    choices=MIRRORED_VARIANTS,
-                   help="fp32, int8-predictor, int8, each optionally with +mirror (the engine's mirror averaging on)")
+                   help="fp32, int8-predictor, int8, int8w (every network's large weights stored in int8, computed in "
+                        "float32), each optionally with +mirror (the engine's mirror averaging on)")
     t.add_argument("--levels", type=int_in(0, 6), nargs="+", default=None, metavar="L",
                    help="template levels to report (default: the predictor's own)")
     t.add_argument("--max-samples", type=int_in(0, 10**9), default=0, help="at most this many test sketches (0: all)")

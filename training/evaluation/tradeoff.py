@@ -10,8 +10,9 @@ on ``--threads`` cores. So every speed figure comes with the accuracy it buys.
 Axes of the trade-off:
 
 * model folders (``--variant LABEL=DIR``): generator widths, predictor sizes;
-* precision (``--precisions fp32 int8-predictor int8``): dynamic int8 quantisation of the
-  predictor only, or of both networks (:func:`engine.bench.make_variant`); each may carry the suffix
+* precision (``--precisions fp32 int8-predictor int8 int8w``): dynamic int8 quantisation of the
+  predictor only, or of both networks, or every network's large weights stored in int8 and computed in
+  float32 (:func:`engine.bench.make_variant`, :func:`engine.bench.compact_model`); each may carry the suffix
   ``+mirror`` (``fp32+mirror``): the engine's mirror averaging on (:mod:`engine.pipeline`), both
   networks run a second time on the drawing flipped left to right;
 * template level (``--levels 2 3 4``): the predictor is trained on one icosphere level L. Icosphere
@@ -213,7 +214,7 @@ def plot(records: list[dict], path: str | Path, bundled: str | None = None) -> N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    markers = {"fp32": "o", "int8-predictor": "s", "int8": "^"}
+    markers = {"fp32": "o", "int8-predictor": "s", "int8": "^", "int8w": "D"}
     labels = sorted({r["label"] for r in records})
     colours = {lab: plt.get_cmap("tab10")(i % 10) for i, lab in enumerate(labels)}
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)

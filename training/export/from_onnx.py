@@ -99,9 +99,13 @@ class _Graph:
         for n in self.nodes:
             if n.op_type == "Constant" and n.attribute and n.attribute[0].HasField("t"):
                 self.arrays[n.output[0]] = numpy_helper.to_array(n.attribute[0].t)
-        for n in self.nodes:  # weights stored in float16 and cast to float32 on load (export --quantize fp16)
+        for n in self.nodes:  # weights stored in float16 or int8 and made float32 on load (export --quantize fp16,
+            # engine.bench.compact_model: Cast, then Mul by the per-channel scales), in graph order
             if n.op_type == "Cast" and n.input and n.input[0] in self.arrays and n.output[0] not in self.arrays:
                 self.arrays[n.output[0]] = self.arrays[n.input[0]].astype(np.float32)
+            elif (n.op_type == "Mul" and len(n.input) == 2 and n.output[0] not in self.arrays
+                  and all(i in self.arrays and self.arrays[i].dtype == np.float32 for i in n.input)):
+                self.arrays[n.output[0]] = self.arrays[n.input[0]] * self.arrays[n.input[1]]
         self.producer = {o: n for n in self.nodes for o in n.output}
         self.consumers: dict[str, list] = {}
         for n in self.nodes:
@@ -432,14 +436,15 @@ def import_models(models_dir: str | Path, out_dir: str | Path, *, data_dir: str 
                 torch.manual_seed(DISCRIMINATOR_SEED)
                 models = {"generator": net, "discriminator": PatchDiscriminator(cfg.base_channels)}
             extra["discriminator"] = "fresh"
-            tol = PARITY_TOLERANCE if quant == "none" else GENERATOR_INT8_TOLERANCE
+            tol = PARITY_TOLERANCE if quant in ("none", "int8-weights") else GENERATOR_INT8_TOLERANCE  # stored: exact
         else:
             cfg = cfg.replace(mode="mesh")
             calib, calib_note = calibration_inputs(cfg, calibration)
             net = load_predictor(graph, cfg, calib)
             models = {"predictor": net}
             extra["batch_norm_calibration"] = calib_note
-            tol = PARITY_TOLERANCE if quant in ("none", "fp16-weights") else INT8_TOLERANCE  # fp16: the same weights
+            tol = PARITY_TOLERANCE if quant in ("none", "fp16-weights", "int8-weights") else INT8_TOLERANCE  # stored
+            # weights are the file's own, exactly
         sketches, normals64, source = parity_inputs(cfg)
         try:
             session = _session(path.read_bytes())
