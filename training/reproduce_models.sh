@@ -331,6 +331,12 @@ RUNS39=${RUNS39:-runs/v39}
 OUT39=${OUT39:-out/v39}
 DATA39N=${DATA39N:-data/legs1550v4}
 DATA39=${DATA39:-data/legs2900v4}
+RUNS40=${RUNS40:-runs/v40}
+OUT40=${OUT40:-out/v40}
+DATA40N=${DATA40N:-data/legs1850v4}
+DATA40S=${DATA40S:-data/legs3600v4}
+COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
+COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
 # Voxel IoU: a cell is solid when its centre is inside the shape or its surface passes through the cell
 # (training.evaluation.metrics.solid_voxels). Every step written before that measure existed scores with cell
@@ -2399,6 +2405,96 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       for s2 in data-v39 predictor-v39-legs-more4 check-legs-v39 routed4-v39 eval-route4-clean-v39 eval-route4-side-v39 \
           eval-route4-strong-v39 gallery-route-v39 supports-v39; do
         step "$s2"
+      done ;;
+    data-v40)  # DATA40N (bench, chair and table shapes 1850-2149, train split, 4 grid views each) merged with DATA39 into
+      # DATA40S, and the fifth generator's images (DATA39's rows copied, --reuse); resumes
+      [ -f "$DATA39/.cache/generated/normals16_mirror/info.json" ] || step data-v39
+      sketchmesh data --source procedural --first-shape 1850 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
+        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA40N"
+      sketchmesh data merge "$DATA40S" "$DATA39" "$DATA40N"
+      sketchmesh data generated "$DATA40S" --models "$OUT8/models_fifth" --name normals16 --workers 2 --reuse "$DATA39"
+      sketchmesh data generated "$DATA40S" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 \
+        --reuse "$DATA39" ;;
+    predictor-v40-legs-more5)  # predictor-v39-legs-more4's run trained on a sixth time along a new cosine (the same rate and
+      # recipe) on DATA40S (300 unseen shapes a category more again), into RUNS40/legs_more5; V36_ITERS [3000], V36_MINUTES
+      # [65] at most; resumes
+      [ -f "$DATA40S/.cache/generated/normals16_mirror/info.json" ] || step data-v40
+      [ -f "$RUNS39/legs_more4/config.json" ] || step predictor-v39-legs-more4
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA40S recipe20 "$RUNS39/legs_more4" "$RUNS40/legs_more5" "${V36_ITERS:-3000}" \
+        "${V36_MINUTES:-65}" 2 ;;
+    check-legs-v40)  # predictor-v40-legs-more5's run exported as the specialist is (OUT40/models_legs_more5) and scored
+      # beside the twenty-first and the last two rounds on the choice set (DATA36C) as check-legs-v39, into OUT40/check_legs
+      legs_check "$OUT40" "$RUNS40/legs_more5" legs_more5 "$OUT36/models_twentyfirst" "$OUT38/models_legs_more3" \
+        "$OUT39/models_legs_more4" ;;
+    routed5-v40)  # OUT40/models_routed5: models_routed4 with predictor-v40-legs-more5's specialist in its place
+      [ -f "$OUT40/models_legs_more5/mesh_predictor.onnx" ] || step check-legs-v40
+      routed_swap "$OUT39/models_routed4" "$OUT40/models_legs_more5" "$OUT40/models_routed5" ;;
+    eval-route5-clean-v40|eval-route5-side-v40|eval-route5-strong-v40)  # models_routed5 on the same drawings as
+      # eval-route-*-v37 to eval-route4-*-v39, into OUT40/route5_<case>; its means beside theirs and its paired differences
+      local c=${1#eval-route5-}; c=${c%-v40}
+      [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      [ -f "$OUT39/route4_$c/eval_models_test.json" ] || step "eval-route4-$c-v39"
+      route_eval "$c" "$OUT40/models_routed5" "$OUT40/route5_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT38/route3_$c/eval_models_test.json" "$OUT39/route4_$c/eval_models_test.json" ;;
+    gallery-route-v40)  # the gallery of models_routed5 (as gallery-route-v39): OUT40/gallery_routed5{,_side}.png
+      [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      route_gallery "$OUT40/models_routed5" "$OUT40/gallery_routed5" ;;
+    supports-v40)  # supports-v39 with models_routed5 in place of models_routed4, into OUT40/supports
+      [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT40/models_routed5" --mirror-only --data "$DATA36T" \
+        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT40/supports" ;;
+    ship-v40)  # models_routed5's specialist becomes the bundled one (the other three files unchanged)
+      [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      local f
+      for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT40/models_routed5/$f" "assets/models/$f"; done
+      cp "$OUT40/models_routed5/mesh_predictor_legged.onnx" assets/models/ ;;
+    legs-v40)  # the specialist's sixth round, every step in order (after legs-v39; about 75 min on 2 cores)
+      for s2 in data-v40 predictor-v40-legs-more5 check-legs-v40 routed5-v40 eval-route5-clean-v40 eval-route5-side-v40 \
+          eval-route5-strong-v40 gallery-route-v40 supports-v40; do
+        step "$s2"
+      done ;;
+    compact-v40)  # COMPACT40 with every network's large Conv / Gemm weights stored in int8, one float32 scale per output
+      # channel, computed in float32 (engine.bench.compact_model, the `int8w` precision of the benches), into
+      # OUT40/models_compact; each file's size before and after
+      [ -f "$COMPACT40/mesh_predictor.onnx" ] || [ "$COMPACT40" != "$OUT40/models_routed5" ] || step routed5-v40
+      rm -rf "$OUT40/models_compact" "$OUT40/compact_work"
+      python3 - "$COMPACT40" "$OUT40" <<'PY'
+import shutil, sys
+from pathlib import Path
+from engine.bench import make_variant
+src, out = Path(sys.argv[1]), Path(sys.argv[2])
+made = make_variant(src, "int8w", out / "compact_work")
+shutil.move(str(made), str(out / "models_compact"))
+(out / "models_compact" / ".complete").unlink()
+shutil.rmtree(out / "compact_work")
+for f in sorted(src.glob("*.onnx")):
+    print(f"{f.name}: {f.stat().st_size:,} -> {(out / 'models_compact' / f.name).stat().st_size:,} bytes")
+print(f"in all: {sum(f.stat().st_size for f in src.glob('*.onnx')):,} -> "
+      f"{sum(f.stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} bytes")
+PY
+      ;;
+    tradeoff-compact-v40)  # error against run time and size: COMPACT40 as stored and with its weights in int8 (the int8w
+      # precision), one pass and mirror averaged, on TRADEOFF_SAMPLES clean test sketches (run it alone: it times)
+      [ -f "$COMPACT40/mesh_predictor.onnx" ] || [ "$COMPACT40" != "$OUT40/models_routed5" ] || step routed5-v40
+      sketchmesh bench tradeoff --data "$DATA36A" --variant "routed=$COMPACT40" --precisions fp32 int8w fp32+mirror \
+        int8w+mirror --bundled "routed:int8w+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
+        --out "$OUT40/tradeoff_compact" ;;
+    eval-compact-clean-v40|eval-compact-side-v40|eval-compact-strong-v40)  # models_compact on the same drawings as
+      # eval-route*-v37 to -v40, into OUT40/compact_<case>; its mean beside the twenty-first's and the folder's it was
+      # made from (COMPACT40_EVAL_<case>, run first), and the paired differences
+      local c=${1#eval-compact-}; c=${c%-v40}
+      [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
+      [ -f "${COMPACT40_EVAL}_$c/eval_models_test.json" ] || { echo "no ${COMPACT40_EVAL}_$c: run the eval of $COMPACT40 first" >&2; return 1; }
+      route_eval "$c" "$OUT40/models_compact" "$OUT40/compact_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "${COMPACT40_EVAL}_$c/eval_models_test.json" ;;
+    latency-compact-v40)  # the app's path timed as latency-route-v37 (bench refine, 156 clean and strong test sketches,
+      # mirror averaged, outline refinement 0 and 3 steps): COMPACT40, then models_compact (run it alone: it times)
+      [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
+      local m folder
+      for m in stored compact; do
+        folder=$COMPACT40; [ "$m" = compact ] && folder=$OUT40/models_compact
+        sketchmesh bench refine --data "$DATA36A" --models "$folder" --max-samples "$SAMPLES2" --mirror-average \
+          --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT40/latency_$m"
       done ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
