@@ -169,7 +169,7 @@ def test_training_continues_from_an_imported_run(trained, exported, tmp_path):
 
 
 def test_the_bundled_models_import_and_reproduce_onnx_runtime(trained, tmp_path):
-    """The app's own files (the larger predictor with float16-stored weights, the width-16 resize generator): the graph layout the importer reads
+    """The app's own files (the larger predictor and the width-16 resize generator with int8-stored weights): the graph layout the importer reads
     is the one the export writes, checked by the importer's parity test against ONNX Runtime."""
     data, _ = trained
     reports = import_models(resolve_models_dir(None), tmp_path / "imp", data_dir=str(data), calibration=16)

@@ -2448,7 +2448,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local f
       for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT40/models_routed5/$f" "assets/models/$f"; done
       cp "$OUT40/models_routed5/mesh_predictor_legged.onnx" assets/models/ ;;
-    legs-v40)  # the specialist's sixth round, every step in order (after legs-v39; about 75 min on 2 cores)
+    legs-v40)  # the specialist's sixth round, every step in order (after legs-v39; about 65 min on 2 cores)
       for s2 in data-v40 predictor-v40-legs-more5 check-legs-v40 routed5-v40 eval-route5-clean-v40 eval-route5-side-v40 \
           eval-route5-strong-v40 gallery-route-v40 supports-v40; do
         step "$s2"
@@ -2471,6 +2471,17 @@ for f in sorted(src.glob("*.onnx")):
     print(f"{f.name}: {f.stat().st_size:,} -> {(out / 'models_compact' / f.name).stat().st_size:,} bytes")
 print(f"in all: {sum(f.stat().st_size for f in src.glob('*.onnx')):,} -> "
       f"{sum(f.stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} bytes")
+import time
+import numpy as np
+from engine.models import load_generator, load_predictor
+for name, load in (("generator.onnx", load_generator), ("mesh_predictor.onnx", load_predictor)):
+    ms = {}
+    for folder in (src, out / "models_compact"):  # what loading costs once (the folds happen here), p50 of 5, 2 threads
+        t = []
+        for _ in range(5):
+            t0 = time.perf_counter(); load(folder / name, 2); t.append((time.perf_counter() - t0) * 1e3)
+        ms[folder.name] = float(np.median(t))
+    print(f"{name} load p50: " + ", ".join(f"{k} {v:.0f} ms" for k, v in ms.items()))
 PY
       ;;
     tradeoff-compact-v40)  # error against run time and size: COMPACT40 as stored and with its weights in int8 (the int8w
@@ -2496,6 +2507,26 @@ PY
         sketchmesh bench refine --data "$DATA36A" --models "$folder" --max-samples "$SAMPLES2" --mirror-average \
           --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT40/latency_$m"
       done ;;
+    compact-all-v40)  # the int8-stored folder and every measure of it, one step at a time (about 30 min on 2 cores)
+      for s2 in compact-v40 eval-compact-clean-v40 eval-compact-side-v40 eval-compact-strong-v40 tradeoff-compact-v40 \
+          latency-compact-v40 supports-compact-v40 gallery-compact-v40; do
+        step "$s2"
+      done ;;
+    supports-compact-v40)  # supports-v40 with models_compact in place of models_routed5, into OUT40/supports_compact
+      [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT40/models_compact" --mirror-only --data "$DATA36T" \
+        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT40/supports_compact" ;;
+    gallery-compact-v40)  # the gallery of models_compact (as gallery-route-v40): OUT40/gallery_compact{,_side}.png
+      [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
+      route_gallery "$OUT40/models_compact" "$OUT40/gallery_compact" ;;
+    ship-compact-v40)  # models_compact (the bundled folder's networks with int8-stored weights) becomes the bundle: all
+      # four files replaced, after ship-v40 (checked: COMPACT40's files are the bundled ones)
+      [ -f "$OUT40/models_compact/router.onnx" ] || step compact-v40
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
+        cmp "$COMPACT40/$f" "assets/models/$f"
+      done
+      cp "$OUT40/models_compact/"{generator,mesh_predictor,mesh_predictor_legged,router}.onnx assets/models/ ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
