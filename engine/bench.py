@@ -41,24 +41,37 @@ EXPORT_SUFFIX = ".glb"
 
 
 def _float32_weights(model) -> None:
-    """In place: weights stored in float16 behind a ``Cast`` to float32 (``sketchmesh export --quantize fp16``) become
-    float32 initialisers again, so that quantisation finds the weights where it looks for them."""
+    """In place: weights stored in float16 behind a ``Cast`` to float32 (``sketchmesh export --quantize fp16``), or in
+    int8 behind a ``Cast`` and a ``Mul`` by their scales (:func:`compact_model`), become float32 initialisers again, so
+    that quantisation finds the weights where it looks for them."""
     from onnx import TensorProto, numpy_helper
 
-    inits = {i.name: i for i in model.graph.initializer}
-    drop_nodes, drop_inits, new = [], set(), []
-    for n in model.graph.node:
-        if (n.op_type == "Cast" and len(n.input) == 1 and n.input[0] in inits
-                and inits[n.input[0]].data_type == TensorProto.FLOAT16
+    graph = model.graph
+    inits = {i.name: i for i in graph.initializer}
+    users: dict[str, int] = {}
+    for n in graph.node:
+        for i in n.input:
+            users[i] = users.get(i, 0) + 1
+    values: dict[str, np.ndarray] = {}  # float32 values of the stored weights' node outputs
+    drop_nodes, drop_inits = [], set()
+    for n in graph.node:
+        if (n.op_type == "Cast" and len(n.input) == 1 and n.input[0] in inits and users.get(n.input[0]) == 1
+                and inits[n.input[0]].data_type in (TensorProto.FLOAT16, TensorProto.INT8)
                 and any(a.name == "to" and a.i == TensorProto.FLOAT for a in n.attribute)):
-            new.append(numpy_helper.from_array(numpy_helper.to_array(inits[n.input[0]]).astype(np.float32), n.output[0]))
+            values[n.output[0]] = numpy_helper.to_array(inits[n.input[0]]).astype(np.float32)
             drop_nodes.append(n)
             drop_inits.add(n.input[0])
+        elif (n.op_type == "Mul" and len(n.input) == 2 and n.input[0] in values and users.get(n.input[0]) == 1
+              and n.input[1] in inits and users.get(n.input[1]) == 1
+              and inits[n.input[1]].data_type == TensorProto.FLOAT):
+            values[n.output[0]] = values.pop(n.input[0]) * numpy_helper.to_array(inits[n.input[1]])
+            drop_nodes.append(n)
+            drop_inits.add(n.input[1])
     for n in drop_nodes:
-        model.graph.node.remove(n)
-    kept = [i for i in model.graph.initializer if i.name not in drop_inits]
-    del model.graph.initializer[:]
-    model.graph.initializer.extend(kept + new)
+        graph.node.remove(n)
+    kept = [i for i in graph.initializer if i.name not in drop_inits]
+    del graph.initializer[:]
+    graph.initializer.extend(kept + [numpy_helper.from_array(v.astype(np.float32), k) for k, v in values.items()])
 
 
 def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:

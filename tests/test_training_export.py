@@ -199,6 +199,15 @@ def test_int8_weight_storage_rounds_each_channel_to_its_own_scale_and_computes_i
     onnx.save(dq, str(tmp_path / "f" / C.PREDICTOR_FILE))
     (tmp_path / "f" / C.GENERATOR_FILE).write_bytes(src.read_bytes())
     np.testing.assert_allclose(SketchEngine(tmp_path / "f", threads=1).predict(raster).mesh.vertices, got, atol=1e-5)
+    # the benches' dynamic int8 finds the int8-stored weights as it finds float ones: every Gemm quantised
+    from engine.bench import quantize_model
+
+    (tmp_path / "q").mkdir()
+    quantize_model(pred, tmp_path / "q" / C.PREDICTOR_FILE)
+    (tmp_path / "q" / C.GENERATOR_FILE).write_bytes(src.read_bytes())
+    qnodes = onnx.load(str(tmp_path / "q" / C.PREDICTOR_FILE)).graph.node
+    assert not any(n.op_type == "Gemm" for n in qnodes) and not any(n.name.endswith("__dequantize") for n in qnodes)
+    assert np.abs(SketchEngine(tmp_path / "q", threads=1).predict(raster).mesh.vertices - ref).max() <= INT8_TOLERANCE
     # bad input is a ModelError naming the file, not a traceback
     (tmp_path / "bad.onnx").write_bytes(b"not a model")
     with pytest.raises(ModelError, match="cannot read"):

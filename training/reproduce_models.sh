@@ -390,6 +390,36 @@ legs_check() {  # the specialist run $2 exported as the app loads it (float16 we
   for m in "$@" "$out/models_$name"; do models+=(--models "$m"); done
   sketchmesh eval "${models[@]}" --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 \
     --out "$out/check_legs"
+  choice_versus "$out/check_legs/eval_models_train.json"
+}
+
+choice_versus() {  # an eval JSON of several model columns on the same meshes: the last column minus each earlier one,
+  # paired over the meshes (mean +- standard error), the floors left out
+  python3 - "$1" <<'PY'
+import json, sys
+import numpy as np
+res = json.load(open(sys.argv[1]))
+cols = [c for c in res["columns"] if c not in ("template", "retrieval")]
+new = cols[-1]
+for c in cols[:-1]:
+    d = np.array([r["iou"][new] - r["iou"][c] for r in res["rows"]])
+    print(f"{new} minus {c}: {d.mean():+.4f} +- {d.std(ddof=1) / np.sqrt(len(d)):.4f} (paired, {len(d)} meshes)")
+PY
+}
+
+route_counts() {  # an eval JSON of one routed folder (mirror only): how often its router sent a legged drawing (LEGS) and
+  # another one to a specialist, which others, and how often it named the drawing's category
+  python3 - "$1" "${LEGS[@]}" <<'PY'
+import json, sys
+from collections import Counter
+res = json.load(open(sys.argv[1])); legs = set(sys.argv[2:]); col = res["columns"][0]
+sent = [(r["category"], v["routes"][col]) for r in res["rows"] for v in r["per_view"]]
+leg = [x for x in sent if x[0] in legs]
+others = Counter(c for c, x in sent if c not in legs and x["route"] is not None)
+print(f"{col}: {len(sent)} drawings, category right {sum(c == x['category'] for c, x in sent) / len(sent):.3f}; sent to "
+      f"a specialist: {sum(x['route'] is not None for _, x in leg)} of {len(leg)} legged, {sum(others.values())} of "
+      f"{len(sent) - len(leg)} others ({', '.join(f'{c} {k}' for c, k in sorted(others.items())) or 'none'})")
+PY
 }
 
 route_eval() {  # a routed folder $2 on every test sketch of case $1 (clean, side or strong: DATA36A's test split at all 48
@@ -2519,6 +2549,11 @@ PY
     gallery-compact-v40)  # the gallery of models_compact (as gallery-route-v40): OUT40/gallery_compact{,_side}.png
       [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
       route_gallery "$OUT40/models_compact" "$OUT40/gallery_compact" ;;
+    versus-v40)  # from the JSONs already written: the sixth round minus each earlier column on the choice set
+      # (check-legs-v40), and how the bundle's router sent every test drawing of each case (eval-compact-*-v40)
+      choice_versus "$OUT40/check_legs/eval_models_train.json"
+      local c
+      for c in clean side strong; do echo "$c:"; route_counts "$OUT40/compact_$c/eval_models_test.json"; done ;;
     ship-compact-v40)  # models_compact (the bundled folder's networks with int8-stored weights) becomes the bundle: all
       # four files replaced, after ship-v40 (checked: COMPACT40's files are the bundled ones)
       [ -f "$OUT40/models_compact/router.onnx" ] || step compact-v40
