@@ -214,6 +214,25 @@ def test_int8_weight_storage_rounds_each_channel_to_its_own_scale_and_computes_i
         compact_model(tmp_path / "bad.onnx", tmp_path / "bad_out.onnx")
 
 
+def test_int8w_export_stores_both_networks_large_weights_in_int8(run_dir, tmp_path, exported):
+    """`export --quantize int8w`: the bundled models' form straight from a run, both files marked, smaller, within the
+    export's tolerances of torch, and run by the engine."""
+    from engine.pipeline import SketchEngine
+    from sketchmesh.cli import main
+
+    assert main(["export", str(run_dir), "-o", str(tmp_path), "--quantize", "int8w"]) == 0
+    for f in (C.GENERATOR_FILE, C.PREDICTOR_FILE):
+        assert _meta(tmp_path / f)[C.META_QUANTIZATION] == "int8-weights"
+        assert any(i.data_type == onnx.TensorProto.INT8 for i in onnx.load(str(tmp_path / f)).graph.initializer)
+    assert (tmp_path / C.GENERATOR_FILE).stat().st_size < 0.5 * (exported / C.GENERATOR_FILE).stat().st_size
+    assert (tmp_path / C.PREDICTOR_FILE).stat().st_size < 0.5 * (exported / C.PREDICTOR_FILE).stat().st_size
+    raster = np.zeros((256, 256), np.float32)
+    raster[60:200, 120:124] = 1.0
+    mesh = SketchEngine(tmp_path, threads=1).predict(raster).mesh
+    ref = SketchEngine(exported, threads=1).predict(raster).mesh
+    assert mesh.num_vertices == ref.num_vertices and np.isfinite(mesh.vertices).all()
+
+
 def test_int8_weight_storage_by_operator_layout_and_what_it_leaves_alone(tmp_path):
     """A hand-built graph: a Gemm with B as (K, N) (transB=0: one scale per column), one with B as (N, K) (transB=1: per
     row), a weight shared by two nodes, a weight that is also a graph input, a small one and a MatMul constant. Only the

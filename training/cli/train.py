@@ -410,9 +410,10 @@ def register(commands, bench) -> None:
     p = commands.add_parser("export", help="export a run to the engine's ONNX models (with a parity check)")
     p.add_argument("run", metavar="RUN")
     p.add_argument("-o", "--output", required=True, metavar="DIR")
-    p.add_argument("--quantize", choices=("none", "int8", "int8-all", "fp16"), default="none",
+    p.add_argument("--quantize", choices=("none", "int8", "int8-all", "fp16", "int8w"), default="none",
                    help="int8: dynamic int8 quantisation of the mesh predictor; int8-all: of both networks; fp16: the "
-                   "mesh predictor's weights stored in float16 and computed in float32 (half the file, float32 speed)")
+                   "mesh predictor's weights stored in float16 and computed in float32 (half the file, float32 speed); "
+                   "int8w: both networks' large weights stored in int8, computed in float32 (the bundled models' form)")
     p.add_argument("--generator-run", metavar="RUN", help="take the generator from this run (default: RUN)")
     p.add_argument("--predictor-run", metavar="RUN", help="take the mesh predictor from this run (default: RUN)")
     p.add_argument("--threads", type=_threads, default=0)

@@ -24,7 +24,10 @@ too): it is slower and only somewhat smaller (the width-32 pix2pix generator: 54
 predictor's large weights in float16, each cast to float32 by a ``Cast`` node that ONNX Runtime
 folds when it loads the model: half the file, float32 arithmetic and speed, an error of order
 1e-4 (dynamic int8 quarters the file but runs the larger predictor's fully connected layers
-2.5x slower, 3.9 ms a pass against 1.6, and errs by 1e-2).
+2.5x slower, 3.9 ms a pass against 1.6, and errs by 1e-2). ``--quantize int8w`` stores both networks'
+large Conv / Gemm weights in int8, one scale per output channel, the predictor's other weights as
+``fp16`` does, all made float32 when ONNX Runtime loads the model (:func:`engine.bench.compact_model`,
+the form the bundled models ship in): about a quarter of float32's bytes at float32's speed.
 
 The generator is rebuilt from its run's config (``generator_arch``: reflect pads and nearest
 ``Resize`` nodes for "resize", ``ConvTranspose`` for "pix2pix"); its arch is written to the
@@ -65,7 +68,7 @@ FP16_TOLERANCE = 5e-3
 """Max |torch - ONNX Runtime| for a predictor with float16-stored weights (float16 rounds to 5e-4 relative)."""
 FP16_MIN_ELEMENTS = 1024
 """Initialisers at least this large are stored in float16 by ``--quantize fp16`` (biases stay float32)."""
-QUANTIZE_CHOICES = ("none", "int8", "int8-all", "fp16")
+QUANTIZE_CHOICES = ("none", "int8", "int8-all", "fp16", "int8w")
 PARITY_SAMPLES = 2
 
 
@@ -149,6 +152,18 @@ def _fp16_weights(model_bytes: bytes) -> bytes:
     nodes = list(graph.node)
     del graph.node[:]
     graph.node.extend(casts + nodes)
+    onnx.checker.check_model(model)
+    return model.SerializeToString()
+
+
+def _int8_stored(model_bytes: bytes) -> bytes:
+    """Large Conv / Gemm weights stored in int8 with per-channel scales (:func:`engine.bench._int8_weights`)."""
+    import onnx
+
+    from engine.bench import _int8_weights
+
+    model = onnx.load_from_string(model_bytes)
+    _int8_weights(model)
     onnx.checker.check_model(model)
     return model.SerializeToString()
 
@@ -258,8 +273,9 @@ def export_models(
             ({"generator": ..., "predictor": ...}) when the two come from different runs.
         code_version: metadata ``code_version`` (or one per role).
         sketches: (N, 1, 256, 256) parity inputs. normals64: (N, 3, 64, 64) parity inputs.
-        quantize: "none", "int8" (mesh predictor only), "int8-all" (both networks) or "fp16" (the mesh
-            predictor's weights stored in float16, computed in float32).
+        quantize: "none", "int8" (mesh predictor only), "int8-all" (both networks), "fp16" (the mesh
+            predictor's weights stored in float16, computed in float32) or "int8w" (both networks' large weights
+            stored in int8, the predictor's others in float16, computed in float32).
 
     Returns:
         One :class:`ExportReport` per file written.
@@ -289,6 +305,9 @@ def export_models(
         if quantize == "int8-all":
             data = _quantize_int8(data)
             gq, gtol = "int8-dynamic", GENERATOR_INT8_TOLERANCE
+        elif quantize == "int8w":
+            data = _int8_stored(data)
+            gq, gtol = "int8-weights", GENERATOR_INT8_TOLERANCE
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
                             contract.META_GENERATOR_ARCH: str(getattr(g, "arch", "pix2pix")),
@@ -314,6 +333,9 @@ def export_models(
         elif quantize == "fp16":
             data = _fp16_weights(data)
             qname, tol = "fp16-weights", FP16_TOLERANCE
+        elif quantize == "int8w":
+            data = _int8_stored(_fp16_weights(data))
+            qname, tol = "int8-weights", INT8_TOLERANCE
         meta = base_meta("predictor") | {contract.META_ROLE: contract.ROLE_PREDICTOR,
                             contract.META_TEMPLATE_LEVEL: str(p.template_level),
                             contract.META_TEMPLATE_RADIUS: repr(float(TEMPLATE_RADIUS)),
