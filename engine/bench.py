@@ -47,7 +47,8 @@ def _float32_weights(model) -> None:
     from onnx import TensorProto, numpy_helper
 
     graph = model.graph
-    inits = {i.name: i for i in graph.initializer}
+    inputs = {i.name for i in graph.input}  # an initialiser listed as a graph input may be overridden: left alone
+    inits = {i.name: i for i in graph.initializer if i.name not in inputs}
     users: dict[str, int] = {}
     for n in graph.node:
         for i in n.input:
@@ -129,8 +130,8 @@ other operators' constants are kept as they are)."""
 def _int8_weights(model) -> int:
     """In place: every Conv weight and Gemm B of at least :data:`INT8W_MIN_ELEMENTS` values, float32 or float16 behind
     a ``Cast``, becomes int8 with one float32 scale per output channel (symmetric, the channel's largest magnitude to
-    127), behind ``Cast`` to float32 and ``Mul`` by the scales producing the old name. Both nodes read only
-    initialisers, so ONNX Runtime folds them when it loads the model: the file holds a byte per weight, the arithmetic
+    127), behind ``Cast`` to float32 and ``Mul`` by the scales producing the old name. The two nodes compute from
+    initialisers alone, so ONNX Runtime folds them when it loads the model: the file holds a byte per weight, the arithmetic
     stays float32. A weight feeding anything else, or several nodes, is left alone: a basis multiplied straight into
     vertex positions (the predictor's ``MatMul``) carries its rounding into the mesh. Returns how many were stored."""
     from onnx import TensorProto, helper, numpy_helper
@@ -157,6 +158,8 @@ def _int8_weights(model) -> int:
             axis = 0 if any(a.name == "transB" and a.i for a in n.attribute) else 1
         else:
             continue
+        if name in inits and inits[name].data_type != TensorProto.FLOAT:
+            continue  # a float16 (or other) network computes in its own type: a float32 Mul would not fit it
         src = casts[name].input[0] if name in casts else name
         if (len(users.get(src, ())) != 1 and src != name) or src in inputs:
             continue
@@ -208,7 +211,11 @@ def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bo
         model = onnx.load(str(src))
     except Exception as exc:  # onnx raises DecodeError, OSError, ...
         raise ModelError(f"{src}: cannot read the ONNX model ({' '.join(str(exc).split())[:200]})") from None
-    if _int8_weights(model) == 0:
+    try:
+        stored = _int8_weights(model)
+    except Exception as exc:  # noqa: BLE001 - numpy / onnx on a malformed tensor
+        raise ModelError(f"{src}: cannot store its weights in int8 ({' '.join(str(exc).split())[:200]})") from None
+    if stored == 0:
         if not require:
             from engine.fileio import atomic_write_bytes
 
@@ -233,6 +240,16 @@ def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bo
 
     atomic_write_bytes(dst, data)
     return dst
+
+
+def folder_bytes(models_dir: Path) -> int:
+    """Bytes of the models a folder runs: the generator, the predictor, and a router with the specialists it names."""
+    from engine.models import load_router
+
+    files = list(model_paths(models_dir))
+    if (models_dir / C.ROUTER_FILE).is_file():
+        files += [models_dir / C.ROUTER_FILE, *(models_dir / n for n in load_router(models_dir / C.ROUTER_FILE, 1).routes)]
+    return sum(f.stat().st_size for f in files if f.is_file())
 
 
 def split_variant(name: str) -> tuple[str, bool]:
@@ -397,7 +414,7 @@ def run_engine_bench(models_dir=None, runs: int = 50, warmup: int = 3, threads: 
                 notes.append(f"{variant}: skipped ({exc})")
                 continue
             times, ref = bench_variant(folder, sketch_paths, runs, warmup, threads, tmp, progress, mirror=mirror)
-            size = sum(p.stat().st_size for p in folder.glob("*.onnx"))  # with a router and its specialists
+            size = folder_bytes(folder)
             results[variant] = (times, ref, size)
         if progress is not None:
             progress.close()

@@ -247,7 +247,8 @@ def test_int8_weight_storage_by_operator_layout_and_what_it_leaves_alone(tmp_pat
     assert k * n >= INT8W_MIN_ELEMENTS
     col_scaled = rng.normal(size=(k, n)).astype(np.float32) * np.logspace(-3, 1, n, dtype=np.float32)  # columns differ
     row_scaled = rng.normal(size=(n, k)).astype(np.float32) * np.logspace(-3, 1, n, dtype=np.float32)[:, None]
-    shared, as_input, small, basis = (rng.normal(size=s).astype(np.float32) for s in ((k, n), (k, n), (8, 8), (k, n)))
+    shared, as_input, small, basis = (rng.normal(size=s).astype(np.float32) for s in ((k, n), (k, n), (n, 64), (k, n)))
+    assert small.size < INT8W_MIN_ELEMENTS
     inits = [numpy_helper.from_array(a, name) for a, name in ((col_scaled, "A"), (row_scaled, "B"), (shared, "S"),
                                                               (as_input, "I"), (small, "T"), (basis, "M"))]
     nodes = [helper.make_node("Gemm", ["x", "A"], ["a"]),
@@ -255,10 +256,11 @@ def test_int8_weight_storage_by_operator_layout_and_what_it_leaves_alone(tmp_pat
              helper.make_node("Gemm", ["b", "S"], ["c"]),
              helper.make_node("Gemm", ["c", "S"], ["d"]),
              helper.make_node("Gemm", ["d", "I"], ["e"]),
-             helper.make_node("MatMul", ["e", "M"], ["y"])]
+             helper.make_node("MatMul", ["e", "M"], ["f"]),
+             helper.make_node("Gemm", ["f", "T"], ["y"])]
     graph = helper.make_graph(nodes, "g", [helper.make_tensor_value_info("x", TensorProto.FLOAT, [2, k]),
                                            helper.make_tensor_value_info("I", TensorProto.FLOAT, [k, n])],
-                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [2, n])], initializer=inits)
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [2, 64])], initializer=inits)
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
     model.ir_version = 8
     src = tmp_path / "m.onnx"
@@ -272,13 +274,13 @@ def test_int8_weight_storage_by_operator_layout_and_what_it_leaves_alone(tmp_pat
         assert np.all(np.abs(arrays[name + "__int8"] * step - w) <= step / 2 * (1 + 1e-5))
     x = rng.normal(size=(2, k)).astype(np.float32)
     a_q, b_q = (arrays[m + "__int8"].astype(np.float32) * arrays[m + "__scale"] for m in "AB")
-    want = ((x @ a_q) @ b_q.T @ shared @ shared @ as_input) @ basis
+    want = ((x @ a_q) @ b_q.T @ shared @ shared @ as_input) @ basis @ small
     got = ort.InferenceSession(str(dst), providers=["CPUExecutionProvider"]).run(None, {"x": x, "I": as_input})[0]
     np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-4 * np.abs(want).max())
     with pytest.raises(ModelError, match="no Conv or Gemm weight"):  # nothing to store: said, not a silent copy
-        onnx.save(helper.make_model(helper.make_graph(nodes[-1:], "g", [
+        onnx.save(helper.make_model(helper.make_graph(nodes[-2:-1], "g", [
             helper.make_tensor_value_info("e", TensorProto.FLOAT, [2, k])], [
-            helper.make_tensor_value_info("y", TensorProto.FLOAT, [2, n])], initializer=inits[-1:]),
+            helper.make_tensor_value_info("f", TensorProto.FLOAT, [2, n])], initializer=inits[-1:]),
             opset_imports=[helper.make_opsetid("", 17)]), str(tmp_path / "mm.onnx"))
         compact_model(tmp_path / "mm.onnx", tmp_path / "mm_c.onnx")
 

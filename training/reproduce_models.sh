@@ -380,7 +380,7 @@ drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants fold
   sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
-legs_check() {  # the specialist run $2 exported as the app loads it (float16 weights, beside the bundled generator) into
+legs_check() {  # the specialist run $2 exported as the app loaded it then (float16 weights, beside the generator) into
   # $1/models_$3, then the model folders $4... (the new one last) scored on the choice set (DATA36C, 129 unseen legged
   # shapes x 4 views) through the app's engine, mirror averaged, into $1/check_legs
   local out=$1 run=$2 name=$3 models=() m; shift 3
@@ -402,7 +402,8 @@ res = json.load(open(sys.argv[1]))
 cols = [c for c in res["columns"] if c not in ("template", "retrieval")]
 new = cols[-1]
 for c in cols[:-1]:
-    d = np.array([r["iou"][new] - r["iou"][c] for r in res["rows"]])
+    d = np.array([r["iou"][new] - r["iou"][c] for r in res["rows"]
+                  if r["iou"].get(new) is not None and r["iou"].get(c) is not None])  # a mesh with no view left out
     print(f"{new} minus {c}: {d.mean():+.4f} +- {d.std(ddof=1) / np.sqrt(len(d)):.4f} (paired, {len(d)} meshes)")
 PY
 }
@@ -2473,8 +2474,12 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
       sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT40/models_routed5" --mirror-only --data "$DATA36T" \
         --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT40/supports" ;;
-    ship-v40)  # models_routed5's specialist becomes the bundled one (the other three files unchanged)
+    ship-v40)  # models_routed5's specialist becomes the bundled one (the other three files unchanged); nothing to do once
+      # ship-compact-v40 has bundled the int8-stored form of models_routed5
       [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      if [ -f "$OUT40/models_compact/generator.onnx" ] && cmp -s "$OUT40/models_compact/generator.onnx" assets/models/generator.onnx; then
+        echo "ship-v40: assets/models already holds models_compact (ship-compact-v40)"; return 0
+      fi
       local f
       for f in generator.onnx mesh_predictor.onnx router.onnx; do cmp "$OUT40/models_routed5/$f" "assets/models/$f"; done
       cp "$OUT40/models_routed5/mesh_predictor_legged.onnx" assets/models/ ;;
@@ -2497,9 +2502,9 @@ made = make_variant(src, "int8w", out / "compact_work")
 shutil.move(str(made), str(out / "models_compact"))
 (out / "models_compact" / ".complete").unlink()
 shutil.rmtree(out / "compact_work")
-for f in sorted(src.glob("*.onnx")):
-    print(f"{f.name}: {f.stat().st_size:,} -> {(out / 'models_compact' / f.name).stat().st_size:,} bytes")
-print(f"in all: {sum(f.stat().st_size for f in src.glob('*.onnx')):,} -> "
+for f in sorted((out / "models_compact").glob("*.onnx")):
+    print(f"{f.name}: {(src / f.name).stat().st_size:,} -> {f.stat().st_size:,} bytes")
+print(f"in all: {sum((src / f.name).stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} -> "
       f"{sum(f.stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} bytes")
 import time
 import numpy as np
@@ -2525,7 +2530,10 @@ PY
       # made from (COMPACT40_EVAL_<case>, run first), and the paired differences
       local c=${1#eval-compact-}; c=${c%-v40}
       [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
-      [ -f "${COMPACT40_EVAL}_$c/eval_models_test.json" ] || { echo "no ${COMPACT40_EVAL}_$c: run the eval of $COMPACT40 first" >&2; return 1; }
+      if [ ! -f "${COMPACT40_EVAL}_$c/eval_models_test.json" ]; then
+        [ "$COMPACT40_EVAL" = "$OUT40/route5" ] || { echo "no ${COMPACT40_EVAL}_$c: run the eval of $COMPACT40 first" >&2; return 1; }
+        step "eval-route5-$c-v40"
+      fi
       route_eval "$c" "$OUT40/models_compact" "$OUT40/compact_$c" "$OUT37/route_$c/eval_models_test.json" \
         "${COMPACT40_EVAL}_$c/eval_models_test.json" ;;
     latency-compact-v40)  # the app's path timed as latency-route-v37 (bench refine, 156 clean and strong test sketches,
@@ -2559,7 +2567,7 @@ PY
       [ -f "$OUT40/models_compact/router.onnx" ] || step compact-v40
       local f
       for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
-        cmp "$COMPACT40/$f" "assets/models/$f"
+        cmp -s "$OUT40/models_compact/$f" "assets/models/$f" || cmp "$COMPACT40/$f" "assets/models/$f"
       done
       cp "$OUT40/models_compact/"{generator,mesh_predictor,mesh_predictor_legged,router}.onnx assets/models/ ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)

@@ -107,7 +107,7 @@ def run_tradeoff(
 
     from tqdm import tqdm
 
-    from engine.bench import make_variant
+    from engine.bench import folder_bytes, make_variant
     from engine.pipeline import SketchEngine
     from training.data.dataset import ShapeViewDataset
     from training.evaluation.evaluate import _pair_metrics, world_vertices
@@ -142,7 +142,7 @@ def run_tradeoff(
             engine = SketchEngine(vfolder, threads=threads, cache_size=0, mirror_average=mirror)
             engine.load()
             model_level = int(engine.model_info()["template_level"])
-            model_mb = sum(f.stat().st_size for f in vfolder.glob("*.onnx")) / 2**20
+            model_mb = folder_bytes(vfolder) / 2**20
             for it in items[:warmup]:
                 engine.predict(it["sketch"][0].numpy())
             run_levels = tuple(levels) or (model_level,)

@@ -160,10 +160,11 @@ def _int8_stored(model_bytes: bytes) -> bytes:
     """Large Conv / Gemm weights stored in int8 with per-channel scales (:func:`engine.bench._int8_weights`)."""
     import onnx
 
-    from engine.bench import _int8_weights
+    from engine.bench import INT8W_MIN_ELEMENTS, _int8_weights
 
     model = onnx.load_from_string(model_bytes)
-    _int8_weights(model)
+    if _int8_weights(model) == 0:
+        raise ModelError(f"--quantize int8w: no Conv or Gemm weight of {INT8W_MIN_ELEMENTS} values or more to store")
     onnx.checker.check_model(model)
     return model.SerializeToString()
 
@@ -307,7 +308,8 @@ def export_models(
             gq, gtol = "int8-dynamic", GENERATOR_INT8_TOLERANCE
         elif quantize == "int8w":
             data = _int8_stored(data)
-            gq, gtol = "int8-weights", GENERATOR_INT8_TOLERANCE
+            gq, gtol = "int8-weights", GENERATOR_INT8_TOLERANCE  # single edge pixels move most: a
+            # sanity bound, as for int8-all
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
                             contract.META_GENERATOR_ARCH: str(getattr(g, "arch", "pix2pix")),
