@@ -335,6 +335,11 @@ RUNS40=${RUNS40:-runs/v40}
 OUT40=${OUT40:-out/v40}
 DATA40N=${DATA40N:-data/legs1850v4}
 DATA40S=${DATA40S:-data/legs3600v4}
+RUNS41=${RUNS41:-runs/v41}
+DATA41=${DATA41:-data/second1550v4}
+DATA41C=${DATA41C:-data/second1200v4}
+OUT41=${OUT41:-out/v41}
+SECOND=(airplane display lamp)  # the three lowest-scoring categories after the legged three (eval-compact-clean-v40)
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -2570,6 +2575,35 @@ PY
         cmp -s "$OUT40/models_compact/$f" "assets/models/$f" || cmp "$COMPACT40/$f" "assets/models/$f"
       done
       cp "$OUT40/models_compact/"{generator,mesh_predictor,mesh_predictor_legged,router}.onnx assets/models/ ;;
+    data-v41)  # DATA41: airplane, display and lamp shapes 1550-2149 (train split, 4 grid views each; shapes no stage has
+      # trained on: the router's are 1300-1549, the choice and retrieval library's 1200-1249), and the fifth generator's
+      # images of the drawings and of their flipped drawings; resumes
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data --source procedural --first-shape 1550 --shapes-per-category 600 --categories "${SECOND[@]}" \
+        --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA41"
+      sketchmesh data generated "$DATA41" --models "$OUT8/models_fifth" --name normals16 --workers 2
+      sketchmesh data generated "$DATA41" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    predictor-v41-second)  # a second specialist, as the legged one began (predictor-v36-legs): the twenty-first's
+      # predictor trained on airplane, display and lamp alone (DATA41) by the CPU recipe at V36_LR [2e-4] along a new
+      # cosine into RUNS41/second: V36_ITERS [3000], V36_MINUTES [65] at most; resumes. Started in the session of
+      # 2026-11-29 with the bundle 21 MB under the budget; its choice, router and test steps are the next session's
+      [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
+      [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || step import-v36
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA41 recipe20 "$RUNS36/twentyfirst/predictor" "$RUNS41/second" \
+        "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2 ;;
+    check-second-v41)  # predictor-v41-second's run exported as the specialists are (float16 weights, beside the twenty-first's
+      # generator; OUT41/models_second) and scored beside the twenty-first on its choice set DATA41C (airplane, display
+      # and lamp shapes 1200-1249, train split, 4 grid views each: DATA36L's shapes of the three) through the app's
+      # engine, mirror averaged, into OUT41/check_second; then its paired gain
+      [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "${SECOND[@]}" \
+        --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA41C"
+      rm -rf "$OUT41/models_second"
+      sketchmesh export "$RUNS41/second" -o "$OUT41/models_second" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT41/models_second/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --mirror-only --data "$DATA41C" \
+        --split train --views 4 --no-retrieval --threads 2 --out "$OUT41/check_second"
+      choice_versus "$OUT41/check_second/eval_models_train.json" ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
