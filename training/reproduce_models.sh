@@ -2593,7 +2593,7 @@ PY
         "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2 ;;
     check-second-v41)  # predictor-v41-second's run exported as the specialists are (float16 weights, beside the twenty-first's
       # generator; OUT41/models_second) and scored beside the twenty-first on its choice set DATA41C (airplane, display
-      # and lamp shapes 1200-1249, train split, 4 grid views each: DATA36L's shapes of the three) through the app's
+      # and lamp shapes 1200-1249, train split, 4 grid views each) through the app's
       # engine, mirror averaged, into OUT41/check_second; then its paired gain
       [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "${SECOND[@]}" \
