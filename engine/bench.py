@@ -1,10 +1,10 @@
 """``sketchmesh bench engine``: per-stage latency of the inference pipeline, and what int8 costs in accuracy.
 
 For each variant -- ``fp32`` (the models as given), ``int8-predictor`` (only the mesh predictor
-dynamically quantised), ``int8`` (both) and ``int8w`` (every network's large weights stored in int8,
-computed in float32: :func:`compact_model`; a quarter of float32's bytes at float32's speed) -- every stage (preprocess, generator, downsample,
-predictor, assemble, export, total) is timed over ``runs`` predictions with the cache off, and
-the variant's error against fp32 on the same sketches is measured: normal-image mean absolute
+dynamically quantised), ``int8`` (both) and ``int8w`` (both networks' large weights stored in int8,
+computed in float32: :func:`compact_model`; a quarter of float32's bytes at float32's speed) -- every
+stage (preprocess, generator, downsample, predictor, assemble, export, total) is timed over ``runs``
+predictions with the cache off, and the variant's error against fp32 on the same sketches is measured: normal-image mean absolute
 error (in encoded [0, 1] units) and per-vertex distance mean / max (in units of the normalised
 shape, whose bounding box is 1 on its longest side). Error against run time, in one table.
 A variant with the suffix ``+mirror`` (e.g. ``fp32+mirror``) runs the engine with ``mirror_average``
@@ -75,6 +75,29 @@ def _float32_weights(model) -> None:
     graph.initializer.extend(kept + [numpy_helper.from_array(v.astype(np.float32), k) for k, v in values.items()])
 
 
+def _mark_quantization(model, value: str) -> None:
+    """In place: the model's metadata kept, ``quantization`` set to ``value`` (and quantize_dynamic's own
+    ``onnx.infer`` note dropped)."""
+    meta = {p.key: p.value for p in model.metadata_props}
+    meta[C.META_QUANTIZATION] = value
+    meta.pop("onnx.infer", None)
+    del model.metadata_props[:]
+    for k, v in meta.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = k, v
+
+
+def _routed_files(models_dir: Path) -> list[Path]:
+    """A routed folder's router and the specialists it names (validated by :func:`engine.models.load_router`); none
+    without a router."""
+    from engine.models import load_router
+
+    router = models_dir / C.ROUTER_FILE
+    if not router.is_file():
+        return []
+    return [router, *(models_dir / name for name in sorted(load_router(router, threads=1).routes))]
+
+
 def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
     """Dynamic int8 quantisation of one model (weights int8, activations quantised at run time).
 
@@ -109,13 +132,7 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
             raise ModelError(f"{src}: int8 quantisation failed: {' '.join(str(exc).split())[:300]}") from None
         finally:
             root.setLevel(level)
-    meta = {p.key: p.value for p in q.metadata_props}
-    meta[C.META_QUANTIZATION] = "int8-dynamic"
-    meta.pop("onnx.infer", None)
-    del q.metadata_props[:]
-    for k, v in meta.items():
-        entry = q.metadata_props.add()
-        entry.key, entry.value = k, v
+    _mark_quantization(q, "int8-dynamic")
     from engine.fileio import atomic_write_bytes
 
     atomic_write_bytes(dst, q.SerializeToString())
@@ -222,12 +239,7 @@ def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bo
             atomic_write_bytes(dst, src.read_bytes())
             return dst
         raise ModelError(f"{src}: no Conv or Gemm weight of {INT8W_MIN_ELEMENTS} values or more to store in int8")
-    meta = {p.key: p.value for p in model.metadata_props}
-    meta[C.META_QUANTIZATION] = "int8-weights"
-    del model.metadata_props[:]
-    for k, v in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = k, v
+    _mark_quantization(model, "int8-weights")
     data = model.SerializeToString()
     try:
         onnx.checker.check_model(model)
@@ -244,12 +256,7 @@ def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bo
 
 def folder_bytes(models_dir: Path) -> int:
     """Bytes of the models a folder runs: the generator, the predictor, and a router with the specialists it names."""
-    from engine.models import load_router
-
-    files = list(model_paths(models_dir))
-    if (models_dir / C.ROUTER_FILE).is_file():
-        files += [models_dir / C.ROUTER_FILE, *(models_dir / n for n in load_router(models_dir / C.ROUTER_FILE, 1).routes)]
-    return sum(f.stat().st_size for f in files if f.is_file())
+    return sum(f.stat().st_size for f in [*model_paths(models_dir), *_routed_files(models_dir)])
 
 
 def split_variant(name: str) -> tuple[str, bool]:
@@ -269,8 +276,6 @@ def make_variant(models_dir: Path, variant: str, out_dir: Path) -> Path:
         return models_dir
     if variant not in VARIANTS:
         raise SketchInputError(f"unknown variant {variant!r}; choose from {', '.join(VARIANTS)}")
-    from engine.models import load_router
-
     gen, pred = model_paths(models_dir)
     folder = out_dir / variant
     if (folder / ".complete").is_file():
@@ -282,11 +287,11 @@ def make_variant(models_dir: Path, variant: str, out_dir: Path) -> Path:
     else:
         shutil.copyfile(gen, folder / C.GENERATOR_FILE)
     convert(pred, folder / C.PREDICTOR_FILE)
-    if (models_dir / C.ROUTER_FILE).is_file():  # a routed folder: the router kept, its specialists made as the predictor
-        router = load_router(models_dir / C.ROUTER_FILE, threads=1)
-        shutil.copyfile(models_dir / C.ROUTER_FILE, folder / C.ROUTER_FILE)
-        for name in sorted(router.routes):
-            convert(models_dir / name, folder / name)
+    for f in _routed_files(models_dir):  # a routed folder: the router kept, its specialists made as the predictor
+        if f.name == C.ROUTER_FILE:
+            shutil.copyfile(f, folder / f.name)
+        else:
+            convert(f, folder / f.name)
     (folder / ".complete").touch()
     return folder
 

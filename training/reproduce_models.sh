@@ -437,6 +437,28 @@ route_eval() {  # a routed folder $2 on every test sketch of case $1 (clean, sid
   versus_json "$@" "$out/eval_models_test.json"
 }
 
+legs_data() {  # bench, chair and table shapes $1 onwards (300 a category, train split, 4 grid views each) into $2, merged
+  # with $4 into $3, and the fifth generator's images of $3's drawings and of their flipped drawings ($5 "reuse": $4's
+  # rows copied with --reuse); resumes
+  local reuse=(); [ "${5:-}" = reuse ] && reuse=(--reuse "$4")
+  sketchmesh data --source procedural --first-shape "$1" --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
+    --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$2"
+  sketchmesh data merge "$3" "$4" "$2"
+  sketchmesh data generated "$3" --models "$OUT8/models_fifth" --name normals16 --workers 2 "${reuse[@]}"
+  sketchmesh data generated "$3" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 "${reuse[@]}"
+}
+
+legs_round() {  # the predictor run $1 trained on by the specialists' CPU recipe (recipe20 at V36_LR [2e-4]) along a new
+  # cosine on the data folder $2 into $3; V36_ITERS [3000], V36_MINUTES [65] at most; resumes
+  RECIPE_LR=${V36_LR:-2e-4} DATA20=$2 recipe20 "$1" "$3" "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2
+}
+
+legs_supports() {  # how the meshes stand: the twenty-first pair and the model folder $1, mirror averaged, on DATA36T's legged
+  # test shapes at 12 views each (canvas path), retrieval among DATA36L's unseen shapes as the real shapes; into $2
+  sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$1" --mirror-only --data "$DATA36T" --split test \
+    --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$2"
+}
+
 routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as mesh_predictor_legged.onnx
   rm -rf "$3"; mkdir -p "$(dirname "$3")"; cp -r "$1" "$3"
   cp "$2/mesh_predictor.onnx" "$3/mesh_predictor_legged.onnx"
@@ -2347,18 +2369,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # not seen, DATA36C's choice shapes 1200-1249 left out), merged with DATA36 into DATA38 (the files hard-linked), and
       # the fifth generator's images of DATA38's drawings and of their flipped drawings; resumes
       [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      sketchmesh data --source procedural --first-shape 1250 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
-        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA38N"
-      sketchmesh data merge "$DATA38" "$DATA36" "$DATA38N"
-      sketchmesh data generated "$DATA38" --models "$OUT8/models_fifth" --name normals16 --workers 2
-      sketchmesh data generated "$DATA38" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+      legs_data 1250 "$DATA38N" "$DATA38" "$DATA36" ;;
     predictor-v38-legs-more3)  # the bundled specialist (predictor-v37-legs-more2's run) trained on a fourth time along a new
       # cosine (the same rate and recipe) on DATA38: DATA36's shapes and 300 a category more it has not seen, into
       # RUNS38/legs_more3. V36_ITERS [3000], V36_MINUTES [65] at most; resumes
       [ -f "$DATA38/.cache/generated/normals16_mirror/info.json" ] || step data-v38
       [ -f "$RUNS37/legs_more2/config.json" ] || step predictor-v37-legs-more2
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA38 recipe20 "$RUNS37/legs_more2" "$RUNS38/legs_more3" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS37/legs_more2" "$DATA38" "$RUNS38/legs_more3" ;;
     check-legs-v38)  # predictor-v38-legs-more3's run exported as the specialist is (float16 weights, beside the bundled
       # generator; OUT38/models_legs_more3) and scored against the bundled specialist (the third round) on the choice set
       # (DATA36C, 129 unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT38/check_legs
@@ -2383,8 +2400,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # DATA36T's legged test shapes at 12 views each (canvas path), with retrieval among DATA36L's unseen shapes of all
       # 13 categories as the reference of real shapes; into OUT38/supports
       [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT38/models_routed3" --mirror-only --data "$DATA36T" \
-        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT38/supports" ;;
+      legs_supports "$OUT38/models_routed3" "$OUT38/supports" ;;
     ship-v38)  # models_routed3's specialist becomes the bundled one (the other three files unchanged)
       [ -f "$OUT38/models_routed3/router.onnx" ] || step routed3-v38
       local f
@@ -2398,19 +2414,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     data-v39)  # DATA39N (bench, chair and table shapes 1550-1849, train split, 4 grid views each) merged with DATA38 into
       # DATA39, and the fifth generator's images (DATA38's rows copied, --reuse); resumes
       [ -f "$DATA38/.cache/generated/normals16_mirror/info.json" ] || step data-v38
-      sketchmesh data --source procedural --first-shape 1550 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
-        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA39N"
-      sketchmesh data merge "$DATA39" "$DATA38" "$DATA39N"
-      sketchmesh data generated "$DATA39" --models "$OUT8/models_fifth" --name normals16 --workers 2 --reuse "$DATA38"
-      sketchmesh data generated "$DATA39" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 \
-        --reuse "$DATA38" ;;
+      legs_data 1550 "$DATA39N" "$DATA39" "$DATA38" reuse ;;
     predictor-v39-legs-more4)  # predictor-v38-legs-more3's run trained on a fifth time along a new cosine (the same rate and
       # recipe) on DATA39 (300 unseen shapes a category more again), into RUNS39/legs_more4; V36_ITERS [3000], V36_MINUTES
       # [65] at most; resumes
       [ -f "$DATA39/.cache/generated/normals16_mirror/info.json" ] || step data-v39
       [ -f "$RUNS38/legs_more3/config.json" ] || step predictor-v38-legs-more3
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA39 recipe20 "$RUNS38/legs_more3" "$RUNS39/legs_more4" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS38/legs_more3" "$DATA39" "$RUNS39/legs_more4" ;;
     check-legs-v39)  # predictor-v39-legs-more4's run exported as the specialist is (OUT39/models_legs_more4) and scored
       # beside the twenty-first and the last two rounds on the choice set (DATA36C) as check-legs-v38, into OUT39/check_legs
       legs_check "$OUT39" "$RUNS39/legs_more4" legs_more4 "$OUT36/models_twentyfirst" "$OUT37/models_legs_more2" \
@@ -2430,8 +2440,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       route_gallery "$OUT39/models_routed4" "$OUT39/gallery_routed4" ;;
     supports-v39)  # supports-v38 with models_routed4 in place of models_routed3, into OUT39/supports
       [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT39/models_routed4" --mirror-only --data "$DATA36T" \
-        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT39/supports" ;;
+      legs_supports "$OUT39/models_routed4" "$OUT39/supports" ;;
     ship-v39)  # models_routed4's specialist becomes the bundled one (the other three files unchanged)
       [ -f "$OUT39/models_routed4/router.onnx" ] || step routed4-v39
       local f
@@ -2445,19 +2454,13 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     data-v40)  # DATA40N (bench, chair and table shapes 1850-2149, train split, 4 grid views each) merged with DATA39 into
       # DATA40S, and the fifth generator's images (DATA39's rows copied, --reuse); resumes
       [ -f "$DATA39/.cache/generated/normals16_mirror/info.json" ] || step data-v39
-      sketchmesh data --source procedural --first-shape 1850 --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
-        --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA40N"
-      sketchmesh data merge "$DATA40S" "$DATA39" "$DATA40N"
-      sketchmesh data generated "$DATA40S" --models "$OUT8/models_fifth" --name normals16 --workers 2 --reuse "$DATA39"
-      sketchmesh data generated "$DATA40S" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 \
-        --reuse "$DATA39" ;;
+      legs_data 1850 "$DATA40N" "$DATA40S" "$DATA39" reuse ;;
     predictor-v40-legs-more5)  # predictor-v39-legs-more4's run trained on a sixth time along a new cosine (the same rate and
       # recipe) on DATA40S (300 unseen shapes a category more again), into RUNS40/legs_more5; V36_ITERS [3000], V36_MINUTES
       # [65] at most; resumes
       [ -f "$DATA40S/.cache/generated/normals16_mirror/info.json" ] || step data-v40
       [ -f "$RUNS39/legs_more4/config.json" ] || step predictor-v39-legs-more4
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA40S recipe20 "$RUNS39/legs_more4" "$RUNS40/legs_more5" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS39/legs_more4" "$DATA40S" "$RUNS40/legs_more5" ;;
     check-legs-v40)  # predictor-v40-legs-more5's run exported as the specialist is (OUT40/models_legs_more5) and scored
       # beside the twenty-first and the last two rounds on the choice set (DATA36C) as check-legs-v39, into OUT40/check_legs
       legs_check "$OUT40" "$RUNS40/legs_more5" legs_more5 "$OUT36/models_twentyfirst" "$OUT38/models_legs_more3" \
@@ -2477,8 +2480,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       route_gallery "$OUT40/models_routed5" "$OUT40/gallery_routed5" ;;
     supports-v40)  # supports-v39 with models_routed5 in place of models_routed4, into OUT40/supports
       [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT40/models_routed5" --mirror-only --data "$DATA36T" \
-        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT40/supports" ;;
+      legs_supports "$OUT40/models_routed5" "$OUT40/supports" ;;
     ship-v40)  # models_routed5's specialist becomes the bundled one (the other three files unchanged); nothing to do once
       # ship-compact-v40 has bundled the int8-stored form of models_routed5
       [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
@@ -2557,8 +2559,7 @@ PY
       done ;;
     supports-compact-v40)  # supports-v40 with models_compact in place of models_routed5, into OUT40/supports_compact
       [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT40/models_compact" --mirror-only --data "$DATA36T" \
-        --split test --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$OUT40/supports_compact" ;;
+      legs_supports "$OUT40/models_compact" "$OUT40/supports_compact" ;;
     gallery-compact-v40)  # the gallery of models_compact (as gallery-route-v40): OUT40/gallery_compact{,_side}.png
       [ -f "$OUT40/models_compact/mesh_predictor.onnx" ] || step compact-v40
       route_gallery "$OUT40/models_compact" "$OUT40/gallery_compact" ;;
@@ -2589,8 +2590,7 @@ PY
       # 2026-11-29 with the bundle 21 MB under the budget; its choice, router and test steps are the next session's
       [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
       [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || step import-v36
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA41 recipe20 "$RUNS36/twentyfirst/predictor" "$RUNS41/second" \
-        "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS36/twentyfirst/predictor" "$DATA41" "$RUNS41/second" ;;
     check-second-v41)  # predictor-v41-second's run exported as the specialists are (float16 weights, beside the twenty-first's
       # generator; OUT41/models_second) and scored beside the twenty-first on its choice set DATA41C (airplane, display
       # and lamp shapes 1200-1249, train split, 4 grid views each) through the app's
@@ -2677,8 +2677,7 @@ PY
       # new cosine (the same rate, data and recipe) into RUNS37/legs_more2: does its gain still grow? V36_ITERS [3000],
       # V36_MINUTES [65] at most; resumes
       [ -f "$RUNS36/legs_more/config.json" ] || step predictor-v36-legs-more
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/legs_more" "$RUNS37/legs_more2" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS36/legs_more" "$DATA36" "$RUNS37/legs_more2" ;;
     check-legs-v37)  # predictor-v37-legs-more2's run exported as the specialist is (float16 weights, beside the bundled
       # generator; OUT37/models_legs_more2) and scored against the bundled specialist on the choice set (DATA36C, 129
       # unseen legged shapes x 4 views) through the app's engine, mirror averaged, into OUT37/check_legs
@@ -2744,14 +2743,12 @@ PY
       # resumes
       [ -f "$DATA36/.cache/generated/normals16_mirror/info.json" ] || { echo "$1 reads $DATA36: run data-v36 generated-v36 generated-mirror-v36 first" >&2; exit 1; }
       [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || step import-v36
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/twentyfirst/predictor" "$RUNS36/legs" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS36/twentyfirst/predictor" "$DATA36" "$RUNS36/legs" ;;
     predictor-v36-legs-more)  # predictor-v36-legs's run trained on as long again along a new cosine (the same rate, data
       # and recipe) into RUNS36/legs_more: does the specialist's gain grow with its samples? V36_ITERS [3000],
       # V36_MINUTES [65] at most; resumes
       [ -f "$RUNS36/legs/config.json" ] || step predictor-v36-legs
-      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA36 recipe20 "$RUNS36/legs" "$RUNS36/legs_more" "${V36_ITERS:-3000}" \
-        "${V36_MINUTES:-65}" 2 ;;
+      legs_round "$RUNS36/legs" "$DATA36" "$RUNS36/legs_more" ;;
     export-v36|export-v36-more)  # predictor-v36-legs's (-more: predictor-v36-legs-more's) run with float16-stored weights
       # beside the bundled generator: OUT36/models_legs (models_legs_more)
       local run=legs; [ "$1" = export-v36-more ] && run=legs_more
