@@ -339,6 +339,10 @@ RUNS41=${RUNS41:-runs/v41}
 DATA41=${DATA41:-data/second1550v4}
 DATA41C=${DATA41C:-data/second1200v4}
 OUT41=${OUT41:-out/v41}
+RUNS42=${RUNS42:-runs/v42}
+OUT42=${OUT42:-out/v42}
+DATA42N=${DATA42N:-data/second2150v4}
+DATA42=${DATA42:-data/second2750v4}
 SECOND=(airplane display lamp)  # the three lowest-scoring categories after the legged three (eval-compact-clean-v40)
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
@@ -413,18 +417,22 @@ for c in cols[:-1]:
 PY
 }
 
-route_counts() {  # an eval JSON of one routed folder (mirror only): how often its router sent a legged drawing (LEGS) and
-  # another one to a specialist, which others, and how often it named the drawing's category
-  python3 - "$1" "${LEGS[@]}" <<'PY'
+route_counts() {  # an eval JSON of one routed folder (mirror only): how often its router sent a drawing of a route's
+  # categories and another one to that route, which others, and how often it named the drawing's category. The routes:
+  # ROUTE_GROUPS ["FILE=CAT,CAT... ..."; the legged specialist alone when unset]
+  python3 - "$1" ${ROUTE_GROUPS:-"mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")"} <<'PY'
 import json, sys
 from collections import Counter
-res = json.load(open(sys.argv[1])); legs = set(sys.argv[2:]); col = res["columns"][0]
+res = json.load(open(sys.argv[1])); col = res["columns"][0]
+groups = {g.split("=")[0]: set(g.split("=")[1].split(",")) for g in sys.argv[2:]}
 sent = [(r["category"], v["routes"][col]) for r in res["rows"] for v in r["per_view"]]
-leg = [x for x in sent if x[0] in legs]
-others = Counter(c for c, x in sent if c not in legs and x["route"] is not None)
-print(f"{col}: {len(sent)} drawings, category right {sum(c == x['category'] for c, x in sent) / len(sent):.3f}; sent to "
-      f"a specialist: {sum(x['route'] is not None for _, x in leg)} of {len(leg)} legged, {sum(others.values())} of "
-      f"{len(sent) - len(leg)} others ({', '.join(f'{c} {k}' for c, k in sorted(others.items())) or 'none'})")
+print(f"{col}: {len(sent)} drawings, category right {sum(c == x['category'] for c, x in sent) / len(sent):.3f}")
+for name, cats in groups.items():
+    mine = [x for c, x in sent if c in cats]
+    others = Counter(c for c, x in sent if c not in cats and x["route"] == name)
+    print(f"  to {name}: {sum(x['route'] == name for x in mine)} of {len(mine)} of {', '.join(sorted(cats))}, "
+          f"{sum(others.values())} of {len(sent) - len(mine)} others "
+          f"({', '.join(f'{c} {k}' for c, k in sorted(others.items())) or 'none'})")
 PY
 }
 
@@ -439,10 +447,11 @@ route_eval() {  # a routed folder $2 on every test sketch of case $1 (clean, sid
 
 legs_data() {  # bench, chair and table shapes $1 onwards (300 a category, train split, 4 grid views each) into $2, merged
   # with $4 into $3, and the fifth generator's images of $3's drawings and of their flipped drawings ($5 "reuse": $4's
-  # rows copied with --reuse); resumes
+  # rows copied with --reuse); resumes. CATS (the categories) and PER_CAT (shapes a category) change the first two
+  local cats=("${LEGS[@]}"); [ -n "${CATS:-}" ] && read -r -a cats <<< "$CATS"
   local reuse=(); [ "${5:-}" = reuse ] && reuse=(--reuse "$4")
-  sketchmesh data --source procedural --first-shape "$1" --shapes-per-category 300 --categories "${LEGS[@]}" --views 12 \
-    --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$2"
+  sketchmesh data --source procedural --first-shape "$1" --shapes-per-category "${PER_CAT:-300}" --categories "${cats[@]}" \
+    --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$2"
   sketchmesh data merge "$3" "$4" "$2"
   sketchmesh data generated "$3" --models "$OUT8/models_fifth" --name normals16 --workers 2 "${reuse[@]}"
   sketchmesh data generated "$3" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 "${reuse[@]}"
@@ -457,6 +466,38 @@ legs_supports() {  # how the meshes stand: the twenty-first pair and the model f
   # test shapes at 12 views each (canvas path), retrieval among DATA36L's unseen shapes as the real shapes; into $2
   sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$1" --mirror-only --data "$DATA36T" --split test \
     --views 12 --sketch-path canvas --retrieval-data "$DATA36L" --threads 2 --out "$2"
+}
+
+compact_folder() {  # the model folder $1 with every network's large Conv / Gemm weights stored in int8, one float32 scale
+  # per output channel, computed in float32 (engine.bench.compact_model, the `int8w` precision of the benches; a router's
+  # specialists too), into $2 (replaced); each file's size before and after, and what loading costs
+  rm -rf "$2" "$2_work"
+  python3 - "$1" "$2" <<'PY'
+import shutil, sys
+from pathlib import Path
+from engine.bench import make_variant
+src, dst = Path(sys.argv[1]), Path(sys.argv[2])
+work = dst.with_name(dst.name + "_work")
+made = make_variant(src, "int8w", work)
+shutil.move(str(made), str(dst))
+(dst / ".complete").unlink()
+shutil.rmtree(work)
+for f in sorted(dst.glob("*.onnx")):
+    print(f"{f.name}: {(src / f.name).stat().st_size:,} -> {f.stat().st_size:,} bytes")
+print(f"in all: {sum((src / f.name).stat().st_size for f in dst.glob('*.onnx')):,} -> "
+      f"{sum(f.stat().st_size for f in dst.glob('*.onnx')):,} bytes")
+import time
+import numpy as np
+from engine.models import load_generator, load_predictor
+for name, load in (("generator.onnx", load_generator), ("mesh_predictor.onnx", load_predictor)):
+    ms = {}
+    for folder in (src, dst):  # what loading costs once (the folds happen here), p50 of 5, 2 threads
+        t = []
+        for _ in range(5):
+            t0 = time.perf_counter(); load(folder / name, 2); t.append((time.perf_counter() - t0) * 1e3)
+        ms[folder.name] = float(np.median(t))
+    print(f"{name} load p50: " + ", ".join(f"{k} {v:.0f} ms" for k, v in ms.items()))
+PY
 }
 
 routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as mesh_predictor_legged.onnx
@@ -2499,33 +2540,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # channel, computed in float32 (engine.bench.compact_model, the `int8w` precision of the benches), into
       # OUT40/models_compact; each file's size before and after
       [ -f "$COMPACT40/mesh_predictor.onnx" ] || [ "$COMPACT40" != "$OUT40/models_routed5" ] || step routed5-v40
-      rm -rf "$OUT40/models_compact" "$OUT40/compact_work"
-      python3 - "$COMPACT40" "$OUT40" <<'PY'
-import shutil, sys
-from pathlib import Path
-from engine.bench import make_variant
-src, out = Path(sys.argv[1]), Path(sys.argv[2])
-made = make_variant(src, "int8w", out / "compact_work")
-shutil.move(str(made), str(out / "models_compact"))
-(out / "models_compact" / ".complete").unlink()
-shutil.rmtree(out / "compact_work")
-for f in sorted((out / "models_compact").glob("*.onnx")):
-    print(f"{f.name}: {(src / f.name).stat().st_size:,} -> {f.stat().st_size:,} bytes")
-print(f"in all: {sum((src / f.name).stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} -> "
-      f"{sum(f.stat().st_size for f in (out / 'models_compact').glob('*.onnx')):,} bytes")
-import time
-import numpy as np
-from engine.models import load_generator, load_predictor
-for name, load in (("generator.onnx", load_generator), ("mesh_predictor.onnx", load_predictor)):
-    ms = {}
-    for folder in (src, out / "models_compact"):  # what loading costs once (the folds happen here), p50 of 5, 2 threads
-        t = []
-        for _ in range(5):
-            t0 = time.perf_counter(); load(folder / name, 2); t.append((time.perf_counter() - t0) * 1e3)
-        ms[folder.name] = float(np.median(t))
-    print(f"{name} load p50: " + ", ".join(f"{k} {v:.0f} ms" for k, v in ms.items()))
-PY
-      ;;
+      compact_folder "$COMPACT40" "$OUT40/models_compact" ;;
     tradeoff-compact-v40)  # error against run time and size: COMPACT40 as stored and with its weights in int8 (the int8w
       # precision), one pass and mirror averaged, on TRADEOFF_SAMPLES clean test sketches (run it alone: it times)
       [ -f "$COMPACT40/mesh_predictor.onnx" ] || [ "$COMPACT40" != "$OUT40/models_routed5" ] || step routed5-v40
@@ -2604,6 +2619,100 @@ PY
       sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --mirror-only --data "$DATA41C" \
         --split train --views 4 --no-retrieval --threads 2 --out "$OUT41/check_second"
       choice_versus "$OUT41/check_second/eval_models_train.json" ;;
+    data-v42)  # DATA42N: airplane, display and lamp shapes 2150-2749 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA41 into DATA42, and the fifth generator's images (DATA41's rows copied, --reuse); resumes
+      [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
+      CATS="${SECOND[*]}" PER_CAT=600 legs_data 2150 "$DATA42N" "$DATA42" "$DATA41" reuse ;;
+    predictor-v42-second2)  # predictor-v41-second's run trained on a second time along a new cosine (the same rate and
+      # recipe) on DATA42 (600 unseen shapes a category more), into RUNS42/second2; V36_ITERS [3000], V36_MINUTES [65]
+      # at most; resumes
+      [ -f "$DATA42/.cache/generated/normals16_mirror/info.json" ] || step data-v42
+      [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
+      legs_round "$RUNS41/second" "$DATA42" "$RUNS42/second2" ;;
+    check-second-v42)  # predictor-v42-second2's run exported as the specialists are (float16 weights, beside the
+      # twenty-first's generator; OUT42/models_second2) and scored beside the twenty-first and the first round on the
+      # choice set DATA41C (check-second-v41) through the app's engine, mirror averaged, into OUT42/check_second; then
+      # its paired gains
+      [ -f "$RUNS42/second2/config.json" ] || step predictor-v42-second2
+      [ -f "$OUT41/models_second/mesh_predictor.onnx" ] || step check-second-v41
+      rm -rf "$OUT42/models_second2"
+      sketchmesh export "$RUNS42/second2" -o "$OUT42/models_second2" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT42/models_second2/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --models "$OUT42/models_second2" \
+        --mirror-only --data "$DATA41C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT42/check_second"
+      choice_versus "$OUT42/check_second/eval_models_train.json" ;;
+    second2-v42)  # the second specialist's second round: data-v42 predictor-v42-second2 check-second-v42 (about 45 min)
+      for s2 in data-v42 predictor-v42-second2 check-second-v42; do step "$s2"; done ;;
+    router-second-v42)  # how the bundled router (router-v37's run) would route the second specialist's categories: its
+      # accuracy and, per threshold, how many airplane, display and lamp drawings of DATA36L (50 unseen shapes a category x
+      # 4 views and their flipped drawings) it sends to a route of them and how many others; into OUT42/router_second_val.json
+      sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${SECOND[@]}" --threads 2 \
+        --json "$OUT42/router_second_val.json" ;;
+    routed6-v42)  # OUT42/models_routed6: models_routed5 (the bundle before int8 storage) with SECOND42's specialist
+      # [OUT42/models_second2] as mesh_predictor_second.onnx and the router exported again from router-v37's run with two
+      # routes (the legged three as before; airplane, display and lamp to the new file) at ROUTE_THRESHOLD [0.8]; then the
+      # largest difference of its probabilities from models_routed5's router on 64 random images and 8 blank ones
+      local pick=${SECOND42:-$OUT42/models_second2}
+      [ -f "$pick/mesh_predictor.onnx" ] || step check-second-v42
+      [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
+      rm -rf "$OUT42/models_routed6"; mkdir -p "$OUT42"; cp -r "$OUT40/models_routed5" "$OUT42/models_routed6"
+      cp "$pick/mesh_predictor.onnx" "$OUT42/models_routed6/mesh_predictor_second.onnx"
+      sketchmesh router export "$RUNS37/router" --models "$OUT42/models_routed6" \
+        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
+        --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
+      python3 - "$OUT40/models_routed5" "$OUT42/models_routed6" <<'PY'
+import sys
+import numpy as np
+from engine.models import load_router
+old, new = (load_router(f"{d}/router.onnx", 2) for d in sys.argv[1:])
+x = np.random.default_rng(0).random((72, 3, 64, 64), dtype=np.float32); x[64:] = 0.0
+p = [r.session.run(None, {r.input_name: x})[0] for r in (old, new)]
+print(f"router probabilities, new minus bundled: max |difference| {np.abs(p[1] - p[0]).max():.2e}; routes {new.routes}, "
+      f"threshold {new.route_threshold}")
+PY
+      du -b "$OUT42"/models_routed6/*.onnx ;;
+    compact6-v42)  # models_routed6 stored as the bundle is (compact_folder: int8 weights, float32 scales) into
+      # OUT42/models_compact6; its other files checked byte-equal to the bundle's int8-stored ones (compact-v40)
+      [ -f "$OUT42/models_routed6/router.onnx" ] || step routed6-v42
+      compact_folder "$OUT42/models_routed6" "$OUT42/models_compact6"
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx; do
+        cmp "$OUT42/models_compact6/$f" "$OUT40/models_compact/$f"
+      done ;;
+    eval-compact6-clean-v42|eval-compact6-side-v42|eval-compact6-strong-v42)  # models_compact6 on the same drawings as
+      # eval-route*-v37 to eval-compact-*-v40, into OUT42/compact6_<case>; its mean beside the twenty-first's and the
+      # bundle's (eval-compact-*-v40), the paired differences, and where its router sent the drawings
+      local c=${1#eval-compact6-}; c=${c%-v42}
+      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
+      [ -f "$OUT40/compact_$c/eval_models_test.json" ] || step "eval-compact-$c-v40"
+      route_eval "$c" "$OUT42/models_compact6" "$OUT42/compact6_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT40/compact_$c/eval_models_test.json"
+      ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+        route_counts "$OUT42/compact6_$c/eval_models_test.json" ;;
+    gallery-compact6-v42)  # the gallery of models_compact6 (as gallery-compact-v40): OUT42/gallery_compact6{,_side}.png
+      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
+      route_gallery "$OUT42/models_compact6" "$OUT42/gallery_compact6" ;;
+    latency-compact6-v42)  # the app's path timed as latency-compact-v40 (bench refine, 156 clean and strong test
+      # sketches, mirror averaged, outline refinement 0 and 3 steps): the bundle (models_compact), then models_compact6,
+      # one after the other (run it alone: it times)
+      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
+      local m
+      for m in compact compact6; do
+        local folder=$OUT40/models_compact; [ "$m" = compact6 ] && folder=$OUT42/models_compact6
+        sketchmesh bench refine --data "$DATA36A" --models "$folder" --max-samples "$SAMPLES2" --mirror-average \
+          --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT42/latency_$m"
+      done ;;
+    second-route-v42)  # the second specialist routed, every measure but latency, in order (about 30 min on 2 cores)
+      for s2 in router-second-v42 routed6-v42 compact6-v42 eval-compact6-clean-v42 eval-compact6-side-v42 \
+          eval-compact6-strong-v42 gallery-compact6-v42; do
+        step "$s2"
+      done ;;
+    ship-compact6-v42)  # models_compact6 becomes the bundle: its router and second specialist join the bundled (int8-stored)
+      # generator, predictor and legged specialist, checked byte-equal to its own
+      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx; do cmp "$OUT42/models_compact6/$f" "assets/models/$f"; done
+      cp "$OUT42/models_compact6/"{router,mesh_predictor_second}.onnx assets/models/ ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
