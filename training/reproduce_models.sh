@@ -340,9 +340,13 @@ DATA41=${DATA41:-data/second1550v4}
 DATA41C=${DATA41C:-data/second1200v4}
 OUT41=${OUT41:-out/v41}
 RUNS42=${RUNS42:-runs/v42}
+RUNS43=${RUNS43:-runs/v43}
+OUT43=${OUT43:-out/v43}
+DATA43N=${DATA43N:-data/second2750v4}
+DATA43=${DATA43:-data/second4350v4}
 OUT42=${OUT42:-out/v42}
 DATA42N=${DATA42N:-data/second2150v4}
-DATA42=${DATA42:-data/second2750v4}
+DATA42=${DATA42:-data/second2900v4}  # 2,896 shapes (run predictor-v42-second2 read it as data/second2750v4)
 SECOND=(airplane display lamp)  # the three lowest-scoring categories after the legged three (eval-compact-clean-v40)
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
@@ -500,9 +504,17 @@ for name, load in (("generator.onnx", load_generator), ("mesh_predictor.onnx", l
 PY
 }
 
-routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as mesh_predictor_legged.onnx
+routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as $4
+  # [mesh_predictor_legged.onnx]
   rm -rf "$3"; mkdir -p "$(dirname "$3")"; cp -r "$1" "$3"
-  cp "$2/mesh_predictor.onnx" "$3/mesh_predictor_legged.onnx"
+  cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
+}
+
+second_eval() {  # route_eval of a folder routing to both specialists ($1 the case, $2 the folder, $3 the eval folder,
+  # $4... earlier results), then where its router sent the drawings, route by route
+  route_eval "$@"
+  ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+    route_counts "$3/eval_models_test.json"
 }
 
 route_gallery() {  # the gallery of a model folder $1 (one test shape a category, from 30 degrees and from the side, mirror
@@ -2685,10 +2697,8 @@ PY
       local c=${1#eval-compact6-}; c=${c%-v42}
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       [ -f "$OUT40/compact_$c/eval_models_test.json" ] || step "eval-compact-$c-v40"
-      route_eval "$c" "$OUT42/models_compact6" "$OUT42/compact6_$c" "$OUT37/route_$c/eval_models_test.json" \
-        "$OUT40/compact_$c/eval_models_test.json"
-      ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
-        route_counts "$OUT42/compact6_$c/eval_models_test.json" ;;
+      second_eval "$c" "$OUT42/models_compact6" "$OUT42/compact6_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT40/compact_$c/eval_models_test.json" ;;
     gallery-compact6-v42)  # the gallery of models_compact6 (as gallery-compact-v40): OUT42/gallery_compact6{,_side}.png
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       route_gallery "$OUT42/models_compact6" "$OUT42/gallery_compact6" ;;
@@ -2713,6 +2723,67 @@ PY
       local f
       for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx; do cmp "$OUT42/models_compact6/$f" "assets/models/$f"; done
       cp "$OUT42/models_compact6/"{router,mesh_predictor_second}.onnx assets/models/ ;;
+    data-v43)  # DATA43N: airplane, display and lamp shapes 2750-3349 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA42 into DATA43, and the fifth generator's images (DATA42's rows copied, --reuse); resumes
+      [ -f "$DATA42/.cache/generated/normals16_mirror/info.json" ] || step data-v42
+      CATS="${SECOND[*]}" PER_CAT=600 legs_data 2750 "$DATA43N" "$DATA43" "$DATA42" reuse ;;
+    predictor-v43-second3)  # predictor-v42-second2's run trained on a third time along a new cosine (the same rate and
+      # recipe) on DATA43 (600 unseen shapes a category more again), into RUNS43/second3; V36_ITERS [3000], V36_MINUTES
+      # [65] at most; resumes
+      [ -f "$DATA43/.cache/generated/normals16_mirror/info.json" ] || step data-v43
+      [ -f "$RUNS42/second2/config.json" ] || step predictor-v42-second2
+      legs_round "$RUNS42/second2" "$DATA43" "$RUNS43/second3" ;;
+    check-second-v43)  # predictor-v43-second3's run exported as the specialists are (OUT43/models_second3) and scored
+      # beside the twenty-first and the first two rounds on the choice set DATA41C as check-second-v42, into
+      # OUT43/check_second; then its paired gains
+      [ -f "$RUNS43/second3/config.json" ] || step predictor-v43-second3
+      [ -f "$OUT42/models_second2/mesh_predictor.onnx" ] || step check-second-v42
+      rm -rf "$OUT43/models_second3"
+      sketchmesh export "$RUNS43/second3" -o "$OUT43/models_second3" --quantize fp16
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT43/models_second3/"
+      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --models "$OUT42/models_second2" \
+        --models "$OUT43/models_second3" --mirror-only --data "$DATA41C" --split train --views 4 --no-retrieval --threads 2 \
+        --out "$OUT43/check_second"
+      choice_versus "$OUT43/check_second/eval_models_train.json" ;;
+    compact7-v43)  # models_routed6 with predictor-v43-second3's specialist as mesh_predictor_second.onnx (OUT43/models_routed7),
+      # stored as the bundle is into OUT43/models_compact7; its other files checked byte-equal to models_compact6's
+      [ -f "$OUT43/models_second3/mesh_predictor.onnx" ] || step check-second-v43
+      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
+      routed_swap "$OUT42/models_routed6" "$OUT43/models_second3" "$OUT43/models_routed7" mesh_predictor_second.onnx
+      compact_folder "$OUT43/models_routed7" "$OUT43/models_compact7"
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
+        cmp "$OUT43/models_compact7/$f" "$OUT42/models_compact6/$f"
+      done ;;
+    eval-compact7-clean-v43|eval-compact7-side-v43|eval-compact7-strong-v43)  # models_compact7 on the same drawings as
+      # eval-compact6-*-v42, into OUT43/compact7_<case>; its mean beside the twenty-first's, the int8-stored bundle
+      # before the second route's (eval-compact-*-v40) and models_compact6's, the paired differences, the routes
+      local c=${1#eval-compact7-}; c=${c%-v43}
+      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
+      [ -f "$OUT42/compact6_$c/eval_models_test.json" ] || step "eval-compact6-$c-v42"
+      second_eval "$c" "$OUT43/models_compact7" "$OUT43/compact7_$c" "$OUT37/route_$c/eval_models_test.json" \
+        "$OUT40/compact_$c/eval_models_test.json" "$OUT42/compact6_$c/eval_models_test.json" ;;
+    gallery-compact7-v43)  # the gallery of models_compact7: OUT43/gallery_compact7{,_side}.png
+      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
+      route_gallery "$OUT43/models_compact7" "$OUT43/gallery_compact7" ;;
+    latency-compact7-v43)  # the app's path timed as latency-compact-v40 for models_compact7 (bench refine, 156 clean and
+      # strong test sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times)
+      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
+      sketchmesh bench refine --data "$DATA36A" --models "$OUT43/models_compact7" --max-samples "$SAMPLES2" --mirror-average \
+        --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT43/latency_compact7" ;;
+    second3-v43)  # the second specialist's third round and its measures, in order (about 65 min on 2 cores)
+      for s2 in data-v43 predictor-v43-second3 check-second-v43 compact7-v43 eval-compact7-clean-v43 eval-compact7-side-v43 \
+          eval-compact7-strong-v43 gallery-compact7-v43; do
+        step "$s2"
+      done ;;
+    ship-compact7-v43)  # models_compact7's second specialist becomes the bundled one (after ship-compact6-v42; the other
+      # files checked byte-equal)
+      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
+        cmp "$OUT43/models_compact7/$f" "assets/models/$f"
+      done
+      cp "$OUT43/models_compact7/mesh_predictor_second.onnx" assets/models/ ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
