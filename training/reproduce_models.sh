@@ -407,7 +407,7 @@ legs_check() {  # the specialist run $2 exported as the app loaded it then (floa
 }
 
 choice_versus() {  # an eval JSON of several model columns on the same meshes: the last column minus each earlier one,
-  # paired over the meshes (mean +- standard error), the floors left out
+  # paired over the meshes (mean +- standard error), the floors left out; then each column's mean per category
   python3 - "$1" <<'PY'
 import json, sys
 import numpy as np
@@ -418,6 +418,9 @@ for c in cols[:-1]:
     d = np.array([r["iou"][new] - r["iou"][c] for r in res["rows"]
                   if r["iou"].get(new) is not None and r["iou"].get(c) is not None])  # a mesh with no view left out
     print(f"{new} minus {c}: {d.mean():+.4f} +- {d.std(ddof=1) / np.sqrt(len(d)):.4f} (paired, {len(d)} meshes)")
+for cat in sorted({r["category"] for r in res["rows"]}):  # each column's mean over the category's meshes
+    print(f"  {cat}: " + ", ".join(f"{c} {np.mean([r['iou'][c] for r in res['rows'] if r['category'] == cat and r['iou'].get(c) is not None]):.3f}"
+                                   for c in cols))
 PY
 }
 
@@ -2716,6 +2719,17 @@ PY
       for s2 in router-second-v42 routed6-v42 compact6-v42 eval-compact6-clean-v42 eval-compact6-side-v42 \
           eval-compact6-strong-v42 gallery-compact6-v42; do
         step "$s2"
+      done ;;
+    versus-v42)  # from the JSONs already written: the second specialist's rounds on their choice set, paired and per
+      # category (check-second-v41, check-second-v42), and where models_compact6's router sent every test drawing of each
+      # case, route by route (eval-compact6-*-v42)
+      choice_versus "$OUT41/check_second/eval_models_train.json"
+      choice_versus "$OUT42/check_second/eval_models_train.json"
+      local c
+      for c in clean side strong; do
+        echo "$c:"
+        ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+          route_counts "$OUT42/compact6_$c/eval_models_test.json"
       done ;;
     ship-compact6-v42)  # models_compact6 becomes the bundle: its router and second specialist join the bundled (int8-stored)
       # generator, predictor and legged specialist, checked byte-equal to its own
