@@ -344,6 +344,7 @@ RUNS43=${RUNS43:-runs/v43}
 OUT43=${OUT43:-out/v43}
 DATA43N=${DATA43N:-data/second2750v4}
 DATA43=${DATA43:-data/second4350v4}
+BUNDLE43=${BUNDLE43:-$OUT43/models_compact7}  # the folder latency-, tradeoff- and docs-v43 measure: the bundle chosen
 OUT42=${OUT42:-out/v42}
 DATA42N=${DATA42N:-data/second2150v4}
 DATA42=${DATA42:-data/second2900v4}  # 2,896 shapes (run predictor-v42-second2 read it as data/second2750v4)
@@ -2659,8 +2660,9 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     second2-v42)  # the second specialist's second round: data-v42 predictor-v42-second2 check-second-v42 (about 45 min)
       for s2 in data-v42 predictor-v42-second2 check-second-v42; do step "$s2"; done ;;
     router-second-v42)  # how the bundled router (router-v37's run) would route the second specialist's categories: its
-      # accuracy and, per threshold, how many airplane, display and lamp drawings of DATA36L (50 unseen shapes a category x
-      # 4 views and their flipped drawings) it sends to a route of them and how many others; into OUT42/router_second_val.json
+      # accuracy and, per threshold, how many airplane, display and lamp drawings of DATA36L (529 unseen shapes, the train
+      # split of shapes 1200-1249 of each category, x 4 views and their flipped drawings) it sends to a route of them and
+      # how many others; into OUT42/router_second_val.json
       sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${SECOND[@]}" --threads 2 \
         --json "$OUT42/router_second_val.json" ;;
     routed6-v42)  # OUT42/models_routed6: models_routed5 (the bundle before int8 storage) with SECOND42's specialist
@@ -2780,11 +2782,25 @@ PY
     gallery-compact7-v43)  # the gallery of models_compact7: OUT43/gallery_compact7{,_side}.png
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
       route_gallery "$OUT43/models_compact7" "$OUT43/gallery_compact7" ;;
-    latency-compact7-v43)  # the app's path timed as latency-compact-v40 for models_compact7 (bench refine, 156 clean and
-      # strong test sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times)
-      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
-      sketchmesh bench refine --data "$DATA36A" --models "$OUT43/models_compact7" --max-samples "$SAMPLES2" --mirror-average \
-        --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT43/latency_compact7" ;;
+    latency-bundle-v43)  # the app's path timed as latency-compact-v40 for BUNDLE43 (bench refine, 156 clean and strong
+      # test sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times), into OUT43/latency_bundle
+      [ -f "$BUNDLE43/router.onnx" ] || [ "$BUNDLE43" != "$OUT43/models_compact7" ] || step compact7-v43
+      sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE43" --max-samples "$SAMPLES2" --mirror-average \
+        --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT43/latency_bundle" ;;
+    tradeoff-bundle-v43)  # error against run time for BUNDLE43 as stored (the precision fp32: the files as given) and with
+      # dynamic int8 on top, one pass and mirror averaged, on TRADEOFF_SAMPLES clean test sketches, into
+      # OUT43/tradeoff_bundle (run it alone: it times)
+      [ -f "$BUNDLE43/router.onnx" ] || [ "$BUNDLE43" != "$OUT43/models_compact7" ] || step compact7-v43
+      sketchmesh bench tradeoff --data "$DATA36A" --variant "routed=$BUNDLE43" --precisions fp32 int8 fp32+mirror \
+        int8+mirror --bundled "routed:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
+        --out "$OUT43/tradeoff_bundle" ;;
+    docs-v43)  # the README's gallery and error-against-run-time plot, of BUNDLE43: its gallery (as gallery-compact-v40)
+      # into OUT43/gallery_bundle{,_side}.png, copied with tradeoff-bundle-v43's plot into docs/
+      [ -f "$OUT43/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v43
+      route_gallery "$BUNDLE43" "$OUT43/gallery_bundle"
+      cp "$OUT43/gallery_bundle.png" docs/gallery.png
+      cp "$OUT43/gallery_bundle_side.png" docs/gallery_side.png
+      cp "$OUT43/tradeoff_bundle/tradeoff.png" docs/tradeoff.png ;;
     second3-v43)  # the second specialist's third round and its measures, in order (about 65 min on 2 cores)
       for s2 in data-v43 predictor-v43-second3 check-second-v43 compact7-v43 eval-compact7-clean-v43 eval-compact7-side-v43 \
           eval-compact7-strong-v43 gallery-compact7-v43; do
