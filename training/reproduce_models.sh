@@ -2806,6 +2806,15 @@ PY
           eval-compact7-strong-v43 gallery-compact7-v43; do
         step "$s2"
       done ;;
+    versus-v43)  # from the JSONs already written: the third round on the choice set, paired and per category
+      # (check-second-v43), and where models_compact7's router sent every test drawing of each case (eval-compact7-*-v43)
+      choice_versus "$OUT43/check_second/eval_models_train.json"
+      local c
+      for c in clean side strong; do
+        echo "$c:"
+        ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+          route_counts "$OUT43/compact7_$c/eval_models_test.json"
+      done ;;
     ship-compact7-v43)  # models_compact7's second specialist becomes the bundled one (after ship-compact6-v42; the other
       # files checked byte-equal)
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
