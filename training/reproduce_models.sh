@@ -341,6 +341,10 @@ DATA41C=${DATA41C:-data/second1200v4}
 OUT41=${OUT41:-out/v41}
 RUNS42=${RUNS42:-runs/v42}
 RUNS43=${RUNS43:-runs/v43}
+RUNS44=${RUNS44:-runs/v44}
+OUT44=${OUT44:-out/v44}
+DATA44=${DATA44:-data/third1550v4}
+DATA44C=${DATA44C:-data/third1200v4}
 OUT43=${OUT43:-out/v43}
 DATA43N=${DATA43N:-data/second2750v4}
 DATA43=${DATA43:-data/second4350v4}
@@ -348,6 +352,7 @@ BUNDLE43=${BUNDLE43:-$OUT43/models_compact7}  # the folder latency-, tradeoff- a
 OUT42=${OUT42:-out/v42}
 DATA42N=${DATA42N:-data/second2150v4}
 DATA42=${DATA42:-data/second2900v4}  # 2,896 shapes (run predictor-v42-second2 read it as data/second2750v4)
+THIRD=(rifle watercraft sofa)  # the three lowest-scoring categories after the specialists' six (eval-compact7-clean-v43)
 SECOND=(airplane display lamp)  # the three lowest-scoring categories after the legged three (eval-compact-clean-v40)
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
@@ -506,6 +511,32 @@ for name, load in (("generator.onnx", load_generator), ("mesh_predictor.onnx", l
         ms[folder.name] = float(np.median(t))
     print(f"{name} load p50: " + ", ".join(f"{k} {v:.0f} ms" for k, v in ms.items()))
 PY
+}
+
+fresh_data() {  # shapes 1550-2149 of the categories $2... (train split, 4 grid views each; shapes no stage has trained on:
+  # the router's are 1300-1549, the choice and retrieval library's 1200-1249) into $1, and the fifth generator's images of
+  # the drawings and of their flipped drawings; resumes
+  local out=$1; shift
+  [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+  sketchmesh data --source procedural --first-shape 1550 --shapes-per-category 600 --categories "$@" \
+    --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$out"
+  sketchmesh data generated "$out" --models "$OUT8/models_fifth" --name normals16 --workers 2
+  sketchmesh data generated "$out" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2
+}
+
+first_check() {  # a specialist's first round, the run $1, on its choice set $2 (shapes 1200-1249 of the categories $5...,
+  # train split, 4 grid views each; rendered, or completed, first): exported as the specialists are (float16 weights,
+  # beside the twenty-first's generator) into $3 and scored beside the twenty-first through the app's engine, mirror
+  # averaged, into $4; then its paired gain and each category's means
+  local run=$1 choice=$2 models=$3 out=$4; shift 4
+  sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "$@" \
+    --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$choice"
+  rm -rf "$models"
+  sketchmesh export "$run" -o "$models" --quantize fp16
+  cp "$OUT36/models_twentyfirst/generator.onnx" "$models/"
+  sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$models" --mirror-only --data "$choice" \
+    --split train --views 4 --no-retrieval --threads 2 --out "$out"
+  choice_versus "$out/eval_models_train.json"
 }
 
 routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as $4
@@ -2610,11 +2641,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     data-v41)  # DATA41: airplane, display and lamp shapes 1550-2149 (train split, 4 grid views each; shapes no stage has
       # trained on: the router's are 1300-1549, the choice and retrieval library's 1200-1249), and the fifth generator's
       # images of the drawings and of their flipped drawings; resumes
-      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
-      sketchmesh data --source procedural --first-shape 1550 --shapes-per-category 600 --categories "${SECOND[@]}" \
-        --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA41"
-      sketchmesh data generated "$DATA41" --models "$OUT8/models_fifth" --name normals16 --workers 2
-      sketchmesh data generated "$DATA41" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+      fresh_data "$DATA41" "${SECOND[@]}" ;;
     predictor-v41-second)  # a second specialist, as the legged one began (predictor-v36-legs): the twenty-first's
       # predictor trained on airplane, display and lamp alone (DATA41) by the CPU recipe at V36_LR [2e-4] along a new
       # cosine into RUNS41/second: V36_ITERS [3000], V36_MINUTES [65] at most; resumes. Started in the session of
@@ -2627,14 +2654,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # and lamp shapes 1200-1249, train split, 4 grid views each) through the app's
       # engine, mirror averaged, into OUT41/check_second; then its paired gain
       [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
-      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "${SECOND[@]}" \
-        --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA41C"
-      rm -rf "$OUT41/models_second"
-      sketchmesh export "$RUNS41/second" -o "$OUT41/models_second" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT41/models_second/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --mirror-only --data "$DATA41C" \
-        --split train --views 4 --no-retrieval --threads 2 --out "$OUT41/check_second"
-      choice_versus "$OUT41/check_second/eval_models_train.json" ;;
+      first_check "$RUNS41/second" "$DATA41C" "$OUT41/models_second" "$OUT41/check_second" "${SECOND[@]}" ;;
     data-v42)  # DATA42N: airplane, display and lamp shapes 2150-2749 (train split, 4 grid views each; no stage has seen
       # them) merged with DATA41 into DATA42, and the fifth generator's images (DATA41's rows copied, --reuse); resumes
       [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
@@ -2823,6 +2843,21 @@ PY
         cmp "$OUT43/models_compact7/$f" "assets/models/$f"
       done
       cp "$OUT43/models_compact7/mesh_predictor_second.onnx" assets/models/ ;;
+    data-v44)  # DATA44: rifle, watercraft and sofa shapes 1550-2149 (fresh_data: train split, 4 grid views each, shapes no
+      # stage has trained on) and the fifth generator's images; resumes
+      fresh_data "$DATA44" "${THIRD[@]}" ;;
+    predictor-v44-third)  # a third specialist, as the second began (predictor-v41-second): the twenty-first's predictor
+      # trained on rifle, watercraft and sofa alone (DATA44) by the CPU recipe at V36_LR [2e-4] along a new cosine into
+      # RUNS44/third: V36_ITERS [3000], V36_MINUTES [65] at most; resumes. Started in the session of 2026-11-29 with
+      # 12.9 MB of the budget left (one more int8-stored predictor: 8.1 MB); its choice, route and test steps are the
+      # next session's
+      [ -f "$DATA44/.cache/generated/normals16_mirror/info.json" ] || step data-v44
+      [ -f "$RUNS36/twentyfirst/predictor/config.json" ] || step import-v36
+      legs_round "$RUNS36/twentyfirst/predictor" "$DATA44" "$RUNS44/third" ;;
+    check-third-v44)  # predictor-v44-third's run on its choice set DATA44C (rifle, watercraft and sofa shapes 1200-1249)
+      # beside the twenty-first, as check-second-v41 (first_check): OUT44/models_third, OUT44/check_third
+      [ -f "$RUNS44/third/config.json" ] || step predictor-v44-third
+      first_check "$RUNS44/third" "$DATA44C" "$OUT44/models_third" "$OUT44/check_third" "${THIRD[@]}" ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
