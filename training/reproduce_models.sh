@@ -399,17 +399,22 @@ drawings_eval() {  # $1 a dataset, $2 yes|no retrieval, $3 a bench-variants fold
   sketchmesh eval "${models[@]}" --data "$data" --split test --views 4 --mirror-average --threads 2 "${extra[@]}" \
     --out "$out"
 }
-legs_check() {  # the specialist run $2 exported as the app loaded it then (float16 weights, beside the generator) into
-  # $1/models_$3, then the model folders $4... (the new one last) scored on the choice set (DATA36C, 129 unseen legged
-  # shapes x 4 views) through the app's engine, mirror averaged, into $1/check_legs
-  local out=$1 run=$2 name=$3 models=() m; shift 3
+round_check() {  # a specialist run $2 exported as the app loads the specialists (float16 weights, beside the
+  # twenty-first's generator) into $1/models_$3, then the model folders $6... and it (the new one last) scored on the
+  # choice set $4 through the app's engine, mirror averaged, into $1/$5; then its paired gains and the category means
+  local out=$1 run=$2 name=$3 choice=$4 check=$5 models=() m; shift 5
   rm -rf "$out/models_$name"
   sketchmesh export "$run" -o "$out/models_$name" --quantize fp16
   cp "$OUT36/models_twentyfirst/generator.onnx" "$out/models_$name/"
   for m in "$@" "$out/models_$name"; do models+=(--models "$m"); done
-  sketchmesh eval "${models[@]}" --mirror-only --data "$DATA36C" --split train --views 4 --no-retrieval --threads 2 \
-    --out "$out/check_legs"
-  choice_versus "$out/check_legs/eval_models_train.json"
+  sketchmesh eval "${models[@]}" --mirror-only --data "$choice" --split train --views 4 --no-retrieval --threads 2 \
+    --out "$out/$check"
+  choice_versus "$out/$check/eval_models_train.json"
+}
+
+legs_check() {  # round_check of the legged specialist's run $2 as $1/models_$3 beside the model folders $4... on its
+  # choice set (DATA36C, 129 unseen legged shapes x 4 views), into $1/check_legs
+  round_check "$1" "$2" "$3" "$DATA36C" check_legs "${@:4}"
 }
 
 choice_versus() {  # an eval JSON of several model columns on the same meshes: the last column minus each earlier one,
@@ -525,18 +530,12 @@ fresh_data() {  # shapes 1550-2149 of the categories $2... (train split, 4 grid 
 }
 
 first_check() {  # a specialist's first round, the run $1, on its choice set $2 (shapes 1200-1249 of the categories $5...,
-  # train split, 4 grid views each; rendered, or completed, first): exported as the specialists are (float16 weights,
-  # beside the twenty-first's generator) into $3 and scored beside the twenty-first through the app's engine, mirror
-  # averaged, into $4; then its paired gain and each category's means
-  local run=$1 choice=$2 models=$3 out=$4; shift 4
+  # train split, 4 grid views each; rendered, or completed, first): round_check beside the twenty-first as $3/models_$4,
+  # into $3/check_$4
+  local run=$1 choice=$2 out=$3 name=$4; shift 4
   sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "$@" \
     --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$choice"
-  rm -rf "$models"
-  sketchmesh export "$run" -o "$models" --quantize fp16
-  cp "$OUT36/models_twentyfirst/generator.onnx" "$models/"
-  sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$models" --mirror-only --data "$choice" \
-    --split train --views 4 --no-retrieval --threads 2 --out "$out"
-  choice_versus "$out/eval_models_train.json"
+  round_check "$out" "$run" "$name" "$choice" "check_$name" "$OUT36/models_twentyfirst"
 }
 
 routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as $4
@@ -2654,7 +2653,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # and lamp shapes 1200-1249, train split, 4 grid views each) through the app's
       # engine, mirror averaged, into OUT41/check_second; then its paired gain
       [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
-      first_check "$RUNS41/second" "$DATA41C" "$OUT41/models_second" "$OUT41/check_second" "${SECOND[@]}" ;;
+      first_check "$RUNS41/second" "$DATA41C" "$OUT41" second "${SECOND[@]}" ;;
     data-v42)  # DATA42N: airplane, display and lamp shapes 2150-2749 (train split, 4 grid views each; no stage has seen
       # them) merged with DATA41 into DATA42, and the fifth generator's images (DATA41's rows copied, --reuse); resumes
       [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
@@ -2671,12 +2670,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # its paired gains
       [ -f "$RUNS42/second2/config.json" ] || step predictor-v42-second2
       [ -f "$OUT41/models_second/mesh_predictor.onnx" ] || step check-second-v41
-      rm -rf "$OUT42/models_second2"
-      sketchmesh export "$RUNS42/second2" -o "$OUT42/models_second2" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT42/models_second2/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --models "$OUT42/models_second2" \
-        --mirror-only --data "$DATA41C" --split train --views 4 --no-retrieval --threads 2 --out "$OUT42/check_second"
-      choice_versus "$OUT42/check_second/eval_models_train.json" ;;
+      round_check "$OUT42" "$RUNS42/second2" second2 "$DATA41C" check_second "$OUT36/models_twentyfirst" \
+        "$OUT41/models_second" ;;
     second2-v42)  # the second specialist's second round: data-v42 predictor-v42-second2 check-second-v42 (about 45 min)
       for s2 in data-v42 predictor-v42-second2 check-second-v42; do step "$s2"; done ;;
     router-second-v42)  # how the bundled router (router-v37's run) would route the second specialist's categories: its
@@ -2727,16 +2722,6 @@ PY
     gallery-compact6-v42)  # the gallery of models_compact6 (as gallery-compact-v40): OUT42/gallery_compact6{,_side}.png
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       route_gallery "$OUT42/models_compact6" "$OUT42/gallery_compact6" ;;
-    latency-compact6-v42)  # the app's path timed as latency-compact-v40 (bench refine, 156 clean and strong test
-      # sketches, mirror averaged, outline refinement 0 and 3 steps): the bundle (models_compact), then models_compact6,
-      # one after the other (run it alone: it times)
-      [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
-      local m
-      for m in compact compact6; do
-        local folder=$OUT40/models_compact; [ "$m" = compact6 ] && folder=$OUT42/models_compact6
-        sketchmesh bench refine --data "$DATA36A" --models "$folder" --max-samples "$SAMPLES2" --mirror-average \
-          --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT42/latency_$m"
-      done ;;
     second-route-v42)  # the second specialist routed, every measure but latency, in order (about 30 min on 2 cores)
       for s2 in router-second-v42 routed6-v42 compact6-v42 eval-compact6-clean-v42 eval-compact6-side-v42 \
           eval-compact6-strong-v42 gallery-compact6-v42; do
@@ -2774,13 +2759,8 @@ PY
       # OUT43/check_second; then its paired gains
       [ -f "$RUNS43/second3/config.json" ] || step predictor-v43-second3
       [ -f "$OUT42/models_second2/mesh_predictor.onnx" ] || step check-second-v42
-      rm -rf "$OUT43/models_second3"
-      sketchmesh export "$RUNS43/second3" -o "$OUT43/models_second3" --quantize fp16
-      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT43/models_second3/"
-      sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$OUT41/models_second" --models "$OUT42/models_second2" \
-        --models "$OUT43/models_second3" --mirror-only --data "$DATA41C" --split train --views 4 --no-retrieval --threads 2 \
-        --out "$OUT43/check_second"
-      choice_versus "$OUT43/check_second/eval_models_train.json" ;;
+      round_check "$OUT43" "$RUNS43/second3" second3 "$DATA41C" check_second "$OUT36/models_twentyfirst" \
+        "$OUT41/models_second" "$OUT42/models_second2" ;;
     compact7-v43)  # models_routed6 with predictor-v43-second3's specialist as mesh_predictor_second.onnx (OUT43/models_routed7),
       # stored as the bundle is into OUT43/models_compact7; its other files checked byte-equal to models_compact6's
       [ -f "$OUT43/models_second3/mesh_predictor.onnx" ] || step check-second-v43
@@ -2857,7 +2837,7 @@ PY
     check-third-v44)  # predictor-v44-third's run on its choice set DATA44C (rifle, watercraft and sofa shapes 1200-1249)
       # beside the twenty-first, as check-second-v41 (first_check): OUT44/models_third, OUT44/check_third
       [ -f "$RUNS44/third/config.json" ] || step predictor-v44-third
-      first_check "$RUNS44/third" "$DATA44C" "$OUT44/models_third" "$OUT44/check_third" "${THIRD[@]}" ;;
+      first_check "$RUNS44/third" "$DATA44C" "$OUT44" third "${THIRD[@]}" ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
