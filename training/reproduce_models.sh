@@ -354,6 +354,10 @@ DATA42N=${DATA42N:-data/second2150v4}
 DATA42=${DATA42:-data/second2900v4}  # 2,896 shapes (run predictor-v42-second2 read it as data/second2750v4)
 THIRD=(rifle watercraft sofa)  # the three lowest-scoring categories after the specialists' six (eval-compact7-clean-v43)
 SECOND=(airplane display lamp)  # the three lowest-scoring categories after the legged three (eval-compact-clean-v40)
+# route_counts' ROUTE_GROUPS for a folder routing to the legged and second specialists, and to the third one too
+ROUTES2="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")"
+ROUTES3="$ROUTES2 mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")"
+BUNDLE44=${BUNDLE44:-$OUT44/models_compact8}  # the folder latency-, tradeoff- and docs-v44 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -544,11 +548,44 @@ routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the 
   cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
 }
 
-second_eval() {  # route_eval of a folder routing to both specialists ($1 the case, $2 the folder, $3 the eval folder,
-  # $4... earlier results), then where its router sent the drawings, route by route
+second_eval() {  # route_eval of a folder routing to the specialists ($1 the case, $2 the folder, $3 the eval folder,
+  # $4... earlier results), then where its router sent the drawings, route by route (ROUTE_GROUPS [ROUTES2])
   route_eval "$@"
-  ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
-    route_counts "$3/eval_models_test.json"
+  ROUTE_GROUPS=${ROUTE_GROUPS:-$ROUTES2} route_counts "$3/eval_models_test.json"
+}
+
+router_diff() {  # the largest difference of the routed folder $2's router probabilities from $1's on 64 random images and
+  # 8 blank ones, and $2's routes and threshold
+  python3 - "$1" "$2" <<'PY'
+import sys
+import numpy as np
+from engine.models import load_router
+old, new = (load_router(f"{d}/router.onnx", 2) for d in sys.argv[1:])
+x = np.random.default_rng(0).random((72, 3, 64, 64), dtype=np.float32); x[64:] = 0.0
+p = [r.session.run(None, {r.input_name: x})[0] for r in (old, new)]
+print(f"router probabilities, new minus bundled: max |difference| {np.abs(p[1] - p[0]).max():.2e}; routes {new.routes}, "
+      f"threshold {new.route_threshold}")
+PY
+}
+
+bundle_latency() {  # the app's path timed as latency-compact-v40 for the folder $1 (bench refine, 156 clean and strong test
+  # sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times), into $2
+  sketchmesh bench refine --data "$DATA36A" --models "$1" --max-samples "$SAMPLES2" --mirror-average \
+    --steps 0 3 --no-intersections --threads 2 --quiet --out "$2"
+}
+
+bundle_tradeoff() {  # error against run time for the folder $1 as stored (the precision fp32: the files as given) and with
+  # dynamic int8 on top, one pass and mirror averaged, on TRADEOFF_SAMPLES clean test sketches, into $2 (run it alone)
+  sketchmesh bench tradeoff --data "$DATA36A" --variant "routed=$1" --precisions fp32 int8 fp32+mirror \
+    int8+mirror --bundled "routed:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 --out "$2"
+}
+
+bundle_docs() {  # the README's gallery and error-against-run-time plot, of the folder $1: its gallery (route_gallery) into
+  # $2{,_side}.png, copied with the tradeoff plot of $3 into docs/
+  route_gallery "$1" "$2"
+  cp "$2.png" docs/gallery.png
+  cp "$2_side.png" docs/gallery_side.png
+  cp "$3/tradeoff.png" docs/tradeoff.png
 }
 
 route_gallery() {  # the gallery of a model folder $1 (one test shape a category, from 30 degrees and from the side, mirror
@@ -2692,16 +2729,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       sketchmesh router export "$RUNS37/router" --models "$OUT42/models_routed6" \
         --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
         --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
-      python3 - "$OUT40/models_routed5" "$OUT42/models_routed6" <<'PY'
-import sys
-import numpy as np
-from engine.models import load_router
-old, new = (load_router(f"{d}/router.onnx", 2) for d in sys.argv[1:])
-x = np.random.default_rng(0).random((72, 3, 64, 64), dtype=np.float32); x[64:] = 0.0
-p = [r.session.run(None, {r.input_name: x})[0] for r in (old, new)]
-print(f"router probabilities, new minus bundled: max |difference| {np.abs(p[1] - p[0]).max():.2e}; routes {new.routes}, "
-      f"threshold {new.route_threshold}")
-PY
+      router_diff "$OUT40/models_routed5" "$OUT42/models_routed6"
       du -b "$OUT42"/models_routed6/*.onnx ;;
     compact6-v42)  # models_routed6 stored as the bundle is (compact_folder: int8 weights, float32 scales) into
       # OUT42/models_compact6; its other files checked byte-equal to the bundle's int8-stored ones (compact-v40)
@@ -2735,8 +2763,7 @@ PY
       local c
       for c in clean side strong; do
         echo "$c:"
-        ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
-          route_counts "$OUT42/compact6_$c/eval_models_test.json"
+        ROUTE_GROUPS=$ROUTES2 route_counts "$OUT42/compact6_$c/eval_models_test.json"
       done ;;
     ship-compact6-v42)  # models_compact6 becomes the bundle: its router and second specialist join the bundled (int8-stored)
       # generator, predictor and legged specialist, checked byte-equal to its own
@@ -2785,22 +2812,16 @@ PY
     latency-bundle-v43)  # the app's path timed as latency-compact-v40 for BUNDLE43 (bench refine, 156 clean and strong
       # test sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times), into OUT43/latency_bundle
       [ -f "$BUNDLE43/router.onnx" ] || [ "$BUNDLE43" != "$OUT43/models_compact7" ] || step compact7-v43
-      sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE43" --max-samples "$SAMPLES2" --mirror-average \
-        --steps 0 3 --no-intersections --threads 2 --quiet --out "$OUT43/latency_bundle" ;;
+      bundle_latency "$BUNDLE43" "$OUT43/latency_bundle" ;;
     tradeoff-bundle-v43)  # error against run time for BUNDLE43 as stored (the precision fp32: the files as given) and with
       # dynamic int8 on top, one pass and mirror averaged, on TRADEOFF_SAMPLES clean test sketches, into
       # OUT43/tradeoff_bundle (run it alone: it times)
       [ -f "$BUNDLE43/router.onnx" ] || [ "$BUNDLE43" != "$OUT43/models_compact7" ] || step compact7-v43
-      sketchmesh bench tradeoff --data "$DATA36A" --variant "routed=$BUNDLE43" --precisions fp32 int8 fp32+mirror \
-        int8+mirror --bundled "routed:fp32+mirror" --max-samples "$TRADEOFF_SAMPLES" --threads 2 \
-        --out "$OUT43/tradeoff_bundle" ;;
+      bundle_tradeoff "$BUNDLE43" "$OUT43/tradeoff_bundle" ;;
     docs-v43)  # the README's gallery and error-against-run-time plot, of BUNDLE43: its gallery (as gallery-compact-v40)
       # into OUT43/gallery_bundle{,_side}.png, copied with tradeoff-bundle-v43's plot into docs/
       [ -f "$OUT43/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v43
-      route_gallery "$BUNDLE43" "$OUT43/gallery_bundle"
-      cp "$OUT43/gallery_bundle.png" docs/gallery.png
-      cp "$OUT43/gallery_bundle_side.png" docs/gallery_side.png
-      cp "$OUT43/tradeoff_bundle/tradeoff.png" docs/tradeoff.png ;;
+      bundle_docs "$BUNDLE43" "$OUT43/gallery_bundle" "$OUT43/tradeoff_bundle" ;;
     second3-v43)  # the second specialist's third round and its measures, in order (about 65 min on 2 cores)
       for s2 in data-v43 predictor-v43-second3 check-second-v43 compact7-v43 eval-compact7-clean-v43 eval-compact7-side-v43 \
           eval-compact7-strong-v43 gallery-compact7-v43; do
@@ -2812,8 +2833,7 @@ PY
       local c
       for c in clean side strong; do
         echo "$c:"
-        ROUTE_GROUPS="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
-          route_counts "$OUT43/compact7_$c/eval_models_test.json"
+        ROUTE_GROUPS=$ROUTES2 route_counts "$OUT43/compact7_$c/eval_models_test.json"
       done ;;
     ship-compact7-v43)  # models_compact7's second specialist becomes the bundled one (after ship-compact6-v42; the other
       # files checked byte-equal)
@@ -2838,6 +2858,77 @@ PY
       # beside the twenty-first, as check-second-v41 (first_check): OUT44/models_third, OUT44/check_third
       [ -f "$RUNS44/third/config.json" ] || step predictor-v44-third
       first_check "$RUNS44/third" "$DATA44C" "$OUT44" third "${THIRD[@]}" ;;
+    router-third-v44)  # how the bundled router (router-v37's run) would route the third specialist's categories: its
+      # accuracy and, per threshold, how many rifle, watercraft and sofa drawings of DATA36L (as router-second-v42) it
+      # sends to a route of them and how many others; into OUT44/router_third_val.json
+      sketchmesh router eval "$RUNS37/router" --data "$DATA36L" --group "${THIRD[@]}" --threads 2 \
+        --json "$OUT44/router_third_val.json" ;;
+    routed8-v44)  # OUT44/models_routed8: models_routed7 (the bundle before int8 storage) with THIRD44's specialist
+      # [OUT44/models_third] as mesh_predictor_third.onnx and the router exported again from router-v37's run with three
+      # routes (legged and second as before; rifle, watercraft and sofa to the new file) at ROUTE_THRESHOLD [0.8]; then
+      # its probabilities against models_routed7's router (router_diff)
+      local pick=${THIRD44:-$OUT44/models_third}
+      [ -f "$pick/mesh_predictor.onnx" ] || step check-third-v44
+      [ -f "$OUT43/models_routed7/router.onnx" ] || step compact7-v43
+      routed_swap "$OUT43/models_routed7" "$pick" "$OUT44/models_routed8" mesh_predictor_third.onnx
+      sketchmesh router export "$RUNS37/router" --models "$OUT44/models_routed8" \
+        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
+        --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+        --route "mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
+      router_diff "$OUT43/models_routed7" "$OUT44/models_routed8"
+      du -b "$OUT44"/models_routed8/*.onnx ;;
+    compact8-v44)  # models_routed8 stored as the bundle is (compact_folder) into OUT44/models_compact8; its networks but
+      # the router and the new specialist checked byte-equal to models_compact7's
+      [ -f "$OUT44/models_routed8/router.onnx" ] || step routed8-v44
+      [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
+      compact_folder "$OUT44/models_routed8" "$OUT44/models_compact8"
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx; do
+        cmp "$OUT44/models_compact8/$f" "$OUT43/models_compact7/$f"
+      done ;;
+    eval-compact8-clean-v44|eval-compact8-side-v44|eval-compact8-strong-v44)  # models_compact8 on the same drawings as
+      # eval-compact7-*-v43, into OUT44/compact8_<case>; its mean beside the twenty-first's, the int8-stored bundle with
+      # the legged route alone (eval-compact-*-v40) and models_compact7's, the paired differences, the three routes
+      local c=${1#eval-compact8-}; c=${c%-v44}
+      [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
+      [ -f "$OUT43/compact7_$c/eval_models_test.json" ] || step "eval-compact7-$c-v43"
+      ROUTE_GROUPS=$ROUTES3 second_eval "$c" "$OUT44/models_compact8" "$OUT44/compact8_$c" \
+        "$OUT37/route_$c/eval_models_test.json" "$OUT40/compact_$c/eval_models_test.json" \
+        "$OUT43/compact7_$c/eval_models_test.json" ;;
+    gallery-compact8-v44)  # the gallery of models_compact8: OUT44/gallery_compact8{,_side}.png
+      [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
+      route_gallery "$OUT44/models_compact8" "$OUT44/gallery_compact8" ;;
+    third-route-v44)  # the third specialist checked, routed and measured but for latency, in order (about 45 min on 2
+      # cores after predictor-v44-third)
+      for s2 in check-third-v44 router-third-v44 routed8-v44 compact8-v44 eval-compact8-clean-v44 eval-compact8-side-v44 \
+          eval-compact8-strong-v44 gallery-compact8-v44; do
+        step "$s2"
+      done ;;
+    versus-v44)  # from the JSONs already written: the third specialist on its choice set, paired and per category
+      # (check-third-v44), and where models_compact8's router sent every test drawing of each case (eval-compact8-*-v44)
+      choice_versus "$OUT44/check_third/eval_models_train.json"
+      local c
+      for c in clean side strong; do
+        echo "$c:"
+        ROUTE_GROUPS=$ROUTES3 route_counts "$OUT44/compact8_$c/eval_models_test.json"
+      done ;;
+    latency-bundle-v44)  # the app's path timed for BUNDLE44 (bundle_latency; run it alone) into OUT44/latency_bundle
+      [ -f "$BUNDLE44/router.onnx" ] || [ "$BUNDLE44" != "$OUT44/models_compact8" ] || step compact8-v44
+      bundle_latency "$BUNDLE44" "$OUT44/latency_bundle" ;;
+    tradeoff-bundle-v44)  # error against run time for BUNDLE44 (bundle_tradeoff; run it alone) into OUT44/tradeoff_bundle
+      [ -f "$BUNDLE44/router.onnx" ] || [ "$BUNDLE44" != "$OUT44/models_compact8" ] || step compact8-v44
+      bundle_tradeoff "$BUNDLE44" "$OUT44/tradeoff_bundle" ;;
+    docs-v44)  # the README's gallery and error-against-run-time plot, of BUNDLE44 (bundle_docs): OUT44/gallery_bundle*
+      [ -f "$OUT44/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v44
+      bundle_docs "$BUNDLE44" "$OUT44/gallery_bundle" "$OUT44/tradeoff_bundle" ;;
+    ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
+      # files checked byte-equal)
+      [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx; do
+        cmp "$OUT44/models_compact8/$f" "assets/models/$f"
+      done
+      cp "$OUT44/models_compact8/"{router,mesh_predictor_third}.onnx assets/models/ ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
