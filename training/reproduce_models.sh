@@ -345,6 +345,10 @@ RUNS44=${RUNS44:-runs/v44}
 OUT44=${OUT44:-out/v44}
 DATA44=${DATA44:-data/third1550v4}
 DATA44C=${DATA44C:-data/third1200v4}
+RUNS45=${RUNS45:-runs/v45}
+OUT45=${OUT45:-out/v45}
+DATA45N=${DATA45N:-data/third2150v4}
+DATA45=${DATA45:-data/third2900v4}
 OUT43=${OUT43:-out/v43}
 DATA43N=${DATA43N:-data/second2750v4}
 DATA43=${DATA43:-data/second4350v4}
@@ -2921,6 +2925,25 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     docs-v44)  # the README's gallery and error-against-run-time plot, of BUNDLE44 (bundle_docs): OUT44/gallery_bundle*
       [ -f "$OUT44/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v44
       bundle_docs "$BUNDLE44" "$OUT44/gallery_bundle" "$OUT44/tradeoff_bundle" ;;
+    data-v45)  # DATA45N: rifle, watercraft and sofa shapes 2150-2749 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA44 into DATA45, and the fifth generator's images (DATA44's rows copied, --reuse); resumes
+      [ -f "$DATA44/.cache/generated/normals16_mirror/info.json" ] || step data-v44
+      CATS="${THIRD[*]}" PER_CAT=600 legs_data 2150 "$DATA45N" "$DATA45" "$DATA44" reuse ;;
+    predictor-v45-third2)  # predictor-v44-third's run trained on a second time along a new cosine (the same rate and
+      # recipe) on DATA45 (600 unseen shapes a category more), into RUNS45/third2; V36_ITERS [3000], V36_MINUTES [65]
+      # at most; resumes
+      [ -f "$DATA45/.cache/generated/normals16_mirror/info.json" ] || step data-v45
+      [ -f "$RUNS44/third/config.json" ] || step predictor-v44-third
+      legs_round "$RUNS44/third" "$DATA45" "$RUNS45/third2" ;;
+    check-third-v45)  # predictor-v45-third2's run exported as the specialists are (OUT45/models_third2) and scored beside
+      # the twenty-first and the first round on the choice set DATA44C (check-third-v44), into OUT45/check_third; then
+      # its paired gains
+      [ -f "$RUNS45/third2/config.json" ] || step predictor-v45-third2
+      [ -f "$OUT44/models_third/mesh_predictor.onnx" ] || step check-third-v44
+      round_check "$OUT45" "$RUNS45/third2" third2 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT44/models_third" ;;
+    third2-v45)  # the third specialist's second round: data-v45 predictor-v45-third2 check-third-v45 (about 50 min)
+      for s2 in data-v45 predictor-v45-third2 check-third-v45; do step "$s2"; done ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
