@@ -2944,6 +2944,49 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         "$OUT44/models_third" ;;
     third2-v45)  # the third specialist's second round: data-v45 predictor-v45-third2 check-third-v45 (about 50 min)
       for s2 in data-v45 predictor-v45-third2 check-third-v45; do step "$s2"; done ;;
+    compact9-v45)  # models_routed8 with predictor-v45-third2's specialist as mesh_predictor_third.onnx (OUT45/models_routed9),
+      # stored as the bundle is into OUT45/models_compact9; its other files checked byte-equal to models_compact8's
+      [ -f "$OUT45/models_third2/mesh_predictor.onnx" ] || step check-third-v45
+      [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
+      routed_swap "$OUT44/models_routed8" "$OUT45/models_third2" "$OUT45/models_routed9" mesh_predictor_third.onnx
+      compact_folder "$OUT45/models_routed9" "$OUT45/models_compact9"
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx router.onnx; do
+        cmp "$OUT45/models_compact9/$f" "$OUT44/models_compact8/$f"
+      done ;;
+    eval-compact9-clean-v45|eval-compact9-side-v45|eval-compact9-strong-v45)  # models_compact9 on the same drawings as
+      # eval-compact8-*-v44, into OUT45/compact9_<case>; its mean beside the twenty-first's, eval-compact-*-v40's,
+      # models_compact7's and models_compact8's, the paired differences, the three routes
+      local c=${1#eval-compact9-}; c=${c%-v45}
+      [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
+      [ -f "$OUT44/compact8_$c/eval_models_test.json" ] || step "eval-compact8-$c-v44"
+      ROUTE_GROUPS=$ROUTES3 second_eval "$c" "$OUT45/models_compact9" "$OUT45/compact9_$c" \
+        "$OUT37/route_$c/eval_models_test.json" "$OUT40/compact_$c/eval_models_test.json" \
+        "$OUT43/compact7_$c/eval_models_test.json" "$OUT44/compact8_$c/eval_models_test.json" ;;
+    gallery-compact9-v45)  # the gallery of models_compact9: OUT45/gallery_compact9{,_side}.png
+      [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
+      route_gallery "$OUT45/models_compact9" "$OUT45/gallery_compact9" ;;
+    third2-route-v45)  # the third specialist's second round routed and measured but for latency, in order (about 25 min
+      # on 2 cores after third2-v45)
+      for s2 in compact9-v45 eval-compact9-clean-v45 eval-compact9-side-v45 eval-compact9-strong-v45 gallery-compact9-v45; do
+        step "$s2"
+      done ;;
+    versus-v45)  # from the JSONs already written: the second round on the choice set, paired and per category
+      # (check-third-v45), and where models_compact9's router sent every test drawing of each case (eval-compact9-*-v45)
+      choice_versus "$OUT45/check_third/eval_models_train.json"
+      local c
+      for c in clean side strong; do
+        echo "$c:"
+        ROUTE_GROUPS=$ROUTES3 route_counts "$OUT45/compact9_$c/eval_models_test.json"
+      done ;;
+    ship-compact9-v45)  # models_compact9's third specialist becomes the bundled one (after ship-compact8-v44; the other
+      # files checked byte-equal)
+      [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
+      local f
+      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx router.onnx; do
+        cmp "$OUT45/models_compact9/$f" "assets/models/$f"
+      done
+      cp "$OUT45/models_compact9/mesh_predictor_third.onnx" assets/models/ ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
