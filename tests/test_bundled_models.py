@@ -80,19 +80,29 @@ def test_every_sample_sketch_gives_a_sane_mesh(engine):
     assert max(ratios) / min(ratios) > 1.3
 
 
-def test_the_bundled_router_sends_each_sample_to_its_categorys_specialist_and_only_there(engine):
-    """Each sample's file name says its category: benches, chairs and tables (the hand-drawn table too) go to the
-    legged specialist, airplanes, displays and lamps (the hand-drawn lamp too) to the second one, every other sample
-    (the hand-drawn mug, of no category, among them) to the general predictor."""
+def test_the_bundled_router_sends_samples_to_their_categorys_specialist_and_never_to_another(engine):
+    """Each sample's file name says its category. Benches, chairs and tables (the hand-drawn table too) belong to the
+    legged specialist, airplanes, displays and lamps (the hand-drawn lamp too) to the second one, rifles, watercraft
+    and sofas to the third; every other sample (the cabinets and the hand-drawn mug, of no category) belongs to the
+    general predictor. No sample may reach another group's specialist; a routed category's sample may stay with the
+    general predictor when the router is unsure (on the validation set the router sends 0.82-0.92 of each group's
+    drawings to its specialist at the bundled threshold: `router-v37`, `router-second-v42`, `router-third-v44`), so at
+    least 80 % of them must reach theirs."""
     info = engine.model_info()["router"]
     assert info is not None, "the bundled folder has a router"
     routes = {name: sorted(group) for name, group in info["routes"].items()}
-    assert sorted(routes.values()) == [["airplane", "display", "lamp"], ["bench", "chair", "table"]]
+    assert sorted(routes.values()) == [["airplane", "display", "lamp"], ["bench", "chair", "table"],
+                                       ["rifle", "sofa", "watercraft"]]
     assert all((MODELS_DIR / name).is_file() for name in routes)
     want = {c: name for name, group in routes.items() for c in group}
     samples = _samples()
     assert len(samples) >= 13
+    reached, routed = [], []
     for path in samples:
         category = path.stem.split("_")[1] if path.stem.startswith("drawn_") else path.stem.split("_")[0]
         pred = engine.predict(str(path))
-        assert pred.route == want.get(category), (path.name, pred.category, pred.route)
+        assert pred.route in (want.get(category), None), (path.name, pred.category, pred.route)
+        if category in want:
+            routed.append(path.name)
+            reached += [path.name] if pred.route == want[category] else []
+    assert len(routed) >= 9 and len(reached) >= 0.8 * len(routed), sorted(set(routed) - set(reached))

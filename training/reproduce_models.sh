@@ -444,7 +444,8 @@ PY
 }
 
 route_counts() {  # an eval JSON of one routed folder (mirror only): how often its router sent a drawing of a route's
-  # categories and another one to that route, which others, and how often it named the drawing's category. The routes:
+  # categories and another one to that route, which others, the route's categories' missed drawings and how many of
+  # them it named right, and how often it named the drawing's category. The routes:
   # ROUTE_GROUPS ["FILE=CAT,CAT... ..."; the legged specialist alone when unset]
   python3 - "$1" ${ROUTE_GROUPS:-"mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")"} <<'PY'
 import json, sys
@@ -459,6 +460,10 @@ for name, cats in groups.items():
     print(f"  to {name}: {sum(x['route'] == name for x in mine)} of {len(mine)} of {', '.join(sorted(cats))}, "
           f"{sum(others.values())} of {len(sent) - len(mine)} others "
           f"({', '.join(f'{c} {k}' for c, k in sorted(others.items())) or 'none'})")
+    missed = [(c, x["category"]) for c, x in sent if c in cats and x["route"] != name]
+    print(f"    missed: {', '.join(f'{c} {k}' for c, k in sorted(Counter(c for c, _ in missed).items())) or 'none'}; "
+          f"of them named right {sum(c == n for c, n in missed)} "
+          f"({', '.join(f'{c} {k}' for c, k in sorted(Counter(c for c, n in missed if c == n).items())) or 'none'})")
 PY
 }
 
