@@ -577,6 +577,23 @@ print(f"router probabilities, new minus bundled: max |difference| {np.abs(p[1] -
 PY
 }
 
+case_routes() {  # route_counts (ROUTE_GROUPS $1) of each case's eval of one routed folder: $2_<case>/eval_models_test.json
+  local c
+  for c in clean side strong; do
+    echo "$c:"
+    ROUTE_GROUPS=$1 route_counts "$2_$c/eval_models_test.json"
+  done
+}
+
+ship_files() {  # the model folder $1's files $2... copied into assets/models, its other networks first checked byte-equal
+  # to the bundle's
+  local f
+  for f in "$1"/*.onnx; do
+    case " ${*:2} " in *" $(basename "$f") "*) ;; *) cmp "$f" "assets/models/$(basename "$f")" ;; esac
+  done
+  for f in "${@:2}"; do cp "$1/$f" assets/models/; done
+}
+
 bundle_latency() {  # the app's path timed as latency-compact-v40 for the folder $1 (bench refine, 156 clean and strong test
   # sketches, mirror averaged, outline refinement 0 and 3 steps; run it alone: it times), into $2
   sketchmesh bench refine --data "$DATA36A" --models "$1" --max-samples "$SAMPLES2" --mirror-average \
@@ -2769,17 +2786,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # case, route by route (eval-compact6-*-v42)
       choice_versus "$OUT41/check_second/eval_models_train.json"
       choice_versus "$OUT42/check_second/eval_models_train.json"
-      local c
-      for c in clean side strong; do
-        echo "$c:"
-        ROUTE_GROUPS=$ROUTES2 route_counts "$OUT42/compact6_$c/eval_models_test.json"
-      done ;;
+      case_routes "$ROUTES2" "$OUT42/compact6" ;;
     ship-compact6-v42)  # models_compact6 becomes the bundle: its router and second specialist join the bundled (int8-stored)
       # generator, predictor and legged specialist, checked byte-equal to its own
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx; do cmp "$OUT42/models_compact6/$f" "assets/models/$f"; done
-      cp "$OUT42/models_compact6/"{router,mesh_predictor_second}.onnx assets/models/ ;;
+      ship_files "$OUT42/models_compact6" router.onnx mesh_predictor_second.onnx ;;
     data-v43)  # DATA43N: airplane, display and lamp shapes 2750-3349 (train split, 4 grid views each; no stage has seen
       # them) merged with DATA42 into DATA43, and the fifth generator's images (DATA42's rows copied, --reuse); resumes
       [ -f "$DATA42/.cache/generated/normals16_mirror/info.json" ] || step data-v42
@@ -2839,19 +2850,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     versus-v43)  # from the JSONs already written: the third round on the choice set, paired and per category
       # (check-second-v43), and where models_compact7's router sent every test drawing of each case (eval-compact7-*-v43)
       choice_versus "$OUT43/check_second/eval_models_train.json"
-      local c
-      for c in clean side strong; do
-        echo "$c:"
-        ROUTE_GROUPS=$ROUTES2 route_counts "$OUT43/compact7_$c/eval_models_test.json"
-      done ;;
+      case_routes "$ROUTES2" "$OUT43/compact7" ;;
     ship-compact7-v43)  # models_compact7's second specialist becomes the bundled one (after ship-compact6-v42; the other
       # files checked byte-equal)
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
-        cmp "$OUT43/models_compact7/$f" "assets/models/$f"
-      done
-      cp "$OUT43/models_compact7/mesh_predictor_second.onnx" assets/models/ ;;
+      ship_files "$OUT43/models_compact7" mesh_predictor_second.onnx ;;
     data-v44)  # DATA44: rifle, watercraft and sofa shapes 1550-2149 (fresh_data: train split, 4 grid views each, shapes no
       # stage has trained on) and the fifth generator's images; resumes
       fresh_data "$DATA44" "${THIRD[@]}" ;;
@@ -2916,11 +2919,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     versus-v44)  # from the JSONs already written: the third specialist on its choice set, paired and per category
       # (check-third-v44), and where models_compact8's router sent every test drawing of each case (eval-compact8-*-v44)
       choice_versus "$OUT44/check_third/eval_models_train.json"
-      local c
-      for c in clean side strong; do
-        echo "$c:"
-        ROUTE_GROUPS=$ROUTES3 route_counts "$OUT44/compact8_$c/eval_models_test.json"
-      done ;;
+      case_routes "$ROUTES3" "$OUT44/compact8" ;;
     latency-bundle-v44)  # the app's path timed for BUNDLE44 (bundle_latency; run it alone) into OUT44/latency_bundle
       [ -f "$BUNDLE44/router.onnx" ] || [ "$BUNDLE44" != "$OUT44/models_compact8" ] || step compact8-v44
       bundle_latency "$BUNDLE44" "$OUT44/latency_bundle" ;;
@@ -2979,27 +2978,15 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     versus-v45)  # from the JSONs already written: the second round on the choice set, paired and per category
       # (check-third-v45), and where models_compact9's router sent every test drawing of each case (eval-compact9-*-v45)
       choice_versus "$OUT45/check_third/eval_models_train.json"
-      local c
-      for c in clean side strong; do
-        echo "$c:"
-        ROUTE_GROUPS=$ROUTES3 route_counts "$OUT45/compact9_$c/eval_models_test.json"
-      done ;;
+      case_routes "$ROUTES3" "$OUT45/compact9" ;;
     ship-compact9-v45)  # models_compact9's third specialist becomes the bundled one (after ship-compact8-v44; the other
       # files checked byte-equal)
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx router.onnx; do
-        cmp "$OUT45/models_compact9/$f" "assets/models/$f"
-      done
-      cp "$OUT45/models_compact9/mesh_predictor_third.onnx" assets/models/ ;;
+      ship_files "$OUT45/models_compact9" mesh_predictor_third.onnx ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx; do
-        cmp "$OUT44/models_compact8/$f" "assets/models/$f"
-      done
-      cp "$OUT44/models_compact8/"{router,mesh_predictor_third}.onnx assets/models/ ;;
+      ship_files "$OUT44/models_compact8" router.onnx mesh_predictor_third.onnx ;;
     route-all-v37)  # the router and the routed pair, then every measure (after data-v37 and legs-more-v36; ~50 min)
       for s2 in router-v37 routed-v37 eval-route-clean-v37 eval-route-side-v37 eval-route-strong-v37 gallery-route-v37 \
           latency-route-v37; do
