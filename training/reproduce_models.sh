@@ -362,6 +362,7 @@ SECOND=(airplane display lamp)  # the three lowest-scoring categories after the 
 ROUTES2="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")"
 ROUTES3="$ROUTES2 mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")"
 BUNDLE44=${BUNDLE44:-$OUT44/models_compact8}  # the folder latency-, tradeoff- and docs-v44 measure
+BUNDLE45=${BUNDLE45:-$OUT45/models_compact9}  # the folder latency-, tradeoff- and docs-v45 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -2979,6 +2980,15 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # (check-third-v45), and where models_compact9's router sent every test drawing of each case (eval-compact9-*-v45)
       choice_versus "$OUT45/check_third/eval_models_train.json"
       case_routes "$ROUTES3" "$OUT45/compact9" ;;
+    latency-bundle-v45)  # the app's path timed for BUNDLE45 (bundle_latency; run it alone) into OUT45/latency_bundle
+      [ -f "$BUNDLE45/router.onnx" ] || [ "$BUNDLE45" != "$OUT45/models_compact9" ] || step compact9-v45
+      bundle_latency "$BUNDLE45" "$OUT45/latency_bundle" ;;
+    tradeoff-bundle-v45)  # error against run time for BUNDLE45 (bundle_tradeoff; run it alone) into OUT45/tradeoff_bundle
+      [ -f "$BUNDLE45/router.onnx" ] || [ "$BUNDLE45" != "$OUT45/models_compact9" ] || step compact9-v45
+      bundle_tradeoff "$BUNDLE45" "$OUT45/tradeoff_bundle" ;;
+    docs-v45)  # the README's gallery and error-against-run-time plot, of BUNDLE45 (bundle_docs): OUT45/gallery_bundle*
+      [ -f "$OUT45/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v45
+      bundle_docs "$BUNDLE45" "$OUT45/gallery_bundle" "$OUT45/tradeoff_bundle" ;;
     ship-compact9-v45)  # models_compact9's third specialist becomes the bundled one (after ship-compact8-v44; the other
       # files checked byte-equal)
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
