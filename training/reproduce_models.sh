@@ -349,6 +349,10 @@ RUNS45=${RUNS45:-runs/v45}
 OUT45=${OUT45:-out/v45}
 DATA45N=${DATA45N:-data/third2150v4}
 DATA45=${DATA45:-data/third2900v4}
+RUNS46=${RUNS46:-runs/v46}
+OUT46=${OUT46:-out/v46}
+DATA46N=${DATA46N:-data/third2750v4}
+DATA46=${DATA46:-data/third4350v4}
 OUT43=${OUT43:-out/v43}
 DATA43N=${DATA43N:-data/second2750v4}
 DATA43=${DATA43:-data/second4350v4}
@@ -2993,6 +2997,24 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # files checked byte-equal)
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
       ship_files "$OUT45/models_compact9" mesh_predictor_third.onnx ;;
+    data-v46)  # DATA46N: rifle, watercraft and sofa shapes 2750-3349 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA45 into DATA46, and the fifth generator's images (DATA45's rows copied, --reuse); resumes
+      [ -f "$DATA45/.cache/generated/normals16_mirror/info.json" ] || step data-v45
+      CATS="${THIRD[*]}" PER_CAT=600 legs_data 2750 "$DATA46N" "$DATA46" "$DATA45" reuse ;;
+    predictor-v46-third3)  # predictor-v45-third2's run trained on a third time along a new cosine (the same rate and
+      # recipe) on DATA46 (600 unseen shapes a category more again), into RUNS46/third3; V36_ITERS [3000], V36_MINUTES
+      # [65] at most; resumes. Started at the end of the session of 2026-11-29 (the twenty-fourth bundle's)
+      [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
+      [ -f "$RUNS45/third2/config.json" ] || step predictor-v45-third2
+      legs_round "$RUNS45/third2" "$DATA46" "$RUNS46/third3" ;;
+    check-third-v46)  # predictor-v46-third3's run exported as the specialists are (OUT46/models_third3) and scored beside
+      # the twenty-first and the first two rounds on the choice set DATA44C, into OUT46/check_third; then its paired gains
+      [ -f "$RUNS46/third3/config.json" ] || step predictor-v46-third3
+      [ -f "$OUT45/models_third2/mesh_predictor.onnx" ] || step check-third-v45
+      round_check "$OUT46" "$RUNS46/third3" third3 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT44/models_third" "$OUT45/models_third2" ;;
+    third3-v46)  # the third specialist's third round: data-v46 predictor-v46-third3 check-third-v46 (about 50 min)
+      for s2 in data-v46 predictor-v46-third3 check-third-v46; do step "$s2"; done ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
