@@ -76,30 +76,30 @@ def test_an_unsure_router_keeps_the_general_predictor_and_loads_no_specialist(tm
     assert eng._specialists == {}  # never routed to: never loaded
 
 
+SECOND = "mesh_predictor_second.onnx"
 THIRD = "mesh_predictor_third.onnx"
 
 
 @pytest.mark.parametrize("probabilities, route", [
-    ([0.02, 0.95, 0.02, 0.01], "mesh_predictor_second.onnx"),  # car = 0.95 passes: the second specialist
+    ([0.02, 0.95, 0.02, 0.01], SECOND),  # car = 0.95 passes: the second specialist
     ([0.01, 0.02, 0.02, 0.95], THIRD),  # sofa = 0.95 passes: the third
     ([0.5, 0.02, 0.46, 0.02], SPECIALIST),  # bench + chair = 0.96 passes: the first
     ([0.45, 0.1, 0.43, 0.02], None),  # no group passes 0.9: the general predictor
 ])
 def test_three_routes_each_drawing_goes_to_its_groups_specialist_alone(tmp_path, probabilities, route):
-    second = "mesh_predictor_second.onnx"
     folder = write_fixture_models(tmp_path / "models")
     write_model(make_predictor(3, seed=7), folder / SPECIALIST)
-    write_model(make_predictor(3, seed=11), folder / second)
+    write_model(make_predictor(3, seed=11), folder / SECOND)
     write_model(make_predictor(3, seed=13), folder / THIRD)
     write_model(make_router(probabilities, categories=("bench", "car", "chair", "sofa"),
-                            routes={SPECIALIST: ["bench", "chair"], second: ["car"], THIRD: ["sofa"]}),
+                            routes={SPECIALIST: ["bench", "chair"], SECOND: ["car"], THIRD: ["sofa"]}),
                 folder / C.ROUTER_FILE)
     eng = SketchEngine(folder, threads=1, cache_size=0)
     raster = rasterize_strokes(_strokes())
     pred = eng.predict(raster)
     want = _vertices(folder / (route or C.PREDICTOR_FILE), folder / C.GENERATOR_FILE, raster)
     others = [_vertices(folder / f, folder / C.GENERATOR_FILE, raster)
-              for f in (SPECIALIST, second, THIRD, C.PREDICTOR_FILE) if f != (route or C.PREDICTOR_FILE)]
+              for f in (SPECIALIST, SECOND, THIRD, C.PREDICTOR_FILE) if f != (route or C.PREDICTOR_FILE)]
     assert all(np.abs(want - o).max() > 1e-3 for o in others)  # the four predictors can be told apart
     np.testing.assert_allclose(pred.mesh.vertices, want, atol=ORT_ATOL)
     assert pred.route == route

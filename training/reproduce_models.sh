@@ -562,7 +562,7 @@ routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the 
   cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
 }
 
-second_eval() {  # route_eval of a folder routing to the specialists ($1 the case, $2 the folder, $3 the eval folder,
+routed_eval() {  # route_eval of a folder routing to the specialists ($1 the case, $2 the folder, $3 the eval folder,
   # $4... earlier results), then where its router sent the drawings, route by route (ROUTE_GROUPS [ROUTES2])
   route_eval "$@"
   ROUTE_GROUPS=${ROUTE_GROUPS:-$ROUTES2} route_counts "$3/eval_models_test.json"
@@ -590,13 +590,25 @@ case_routes() {  # route_counts (ROUTE_GROUPS $1) of each case's eval of one rou
   done
 }
 
-ship_files() {  # the model folder $1's files $2... copied into assets/models, its other networks first checked byte-equal
-  # to the bundle's
+same_except() {  # every network of the model folder $1 but the files $3... checked byte-equal to the folder $2's
   local f
   for f in "$1"/*.onnx; do
-    case " ${*:2} " in *" $(basename "$f") "*) ;; *) cmp "$f" "assets/models/$(basename "$f")" ;; esac
+    case " ${*:3} " in *" $(basename "$f") "*) ;; *) cmp "$f" "$2/$(basename "$f")" || return 1 ;; esac
   done
+}
+
+ship_files() {  # the model folder $1's files $2... copied into assets/models, its other networks first checked byte-equal
+  # to the bundle's (same_except)
+  same_except "$1" assets/models "${@:2}"
+  local f
   for f in "${@:2}"; do cp "$1/$f" assets/models/; done
+}
+
+router_export() {  # router-v37's run exported into the routed folder $1 with the routes $2 ("FILE=CAT,CAT... ...", as
+  # ROUTES2 / ROUTES3) at ROUTE_THRESHOLD [0.8]
+  local routes=() g
+  for g in $2; do routes+=(--route "$g"); done
+  sketchmesh router export "$RUNS37/router" --models "$1" "${routes[@]}" --threshold "${ROUTE_THRESHOLD:-0.8}"
 }
 
 bundle_latency() {  # the app's path timed as latency-compact-v40 for the folder $1 (bench refine, 156 clean and strong test
@@ -2755,28 +2767,22 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       local pick=${SECOND42:-$OUT42/models_second2}
       [ -f "$pick/mesh_predictor.onnx" ] || step check-second-v42
       [ -f "$OUT40/models_routed5/router.onnx" ] || step routed5-v40
-      rm -rf "$OUT42/models_routed6"; mkdir -p "$OUT42"; cp -r "$OUT40/models_routed5" "$OUT42/models_routed6"
-      cp "$pick/mesh_predictor.onnx" "$OUT42/models_routed6/mesh_predictor_second.onnx"
-      sketchmesh router export "$RUNS37/router" --models "$OUT42/models_routed6" \
-        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
-        --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
+      routed_swap "$OUT40/models_routed5" "$pick" "$OUT42/models_routed6" mesh_predictor_second.onnx
+      router_export "$OUT42/models_routed6" "$ROUTES2"
       router_diff "$OUT40/models_routed5" "$OUT42/models_routed6"
       du -b "$OUT42"/models_routed6/*.onnx ;;
     compact6-v42)  # models_routed6 stored as the bundle is (compact_folder: int8 weights, float32 scales) into
       # OUT42/models_compact6; its other files checked byte-equal to the bundle's int8-stored ones (compact-v40)
       [ -f "$OUT42/models_routed6/router.onnx" ] || step routed6-v42
       compact_folder "$OUT42/models_routed6" "$OUT42/models_compact6"
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx; do
-        cmp "$OUT42/models_compact6/$f" "$OUT40/models_compact/$f"
-      done ;;
+      same_except "$OUT42/models_compact6" "$OUT40/models_compact" router.onnx mesh_predictor_second.onnx ;;
     eval-compact6-clean-v42|eval-compact6-side-v42|eval-compact6-strong-v42)  # models_compact6 on the same drawings as
       # eval-route*-v37 to eval-compact-*-v40, into OUT42/compact6_<case>; its mean beside the twenty-first's and the
       # bundle's (eval-compact-*-v40), the paired differences, and where its router sent the drawings
       local c=${1#eval-compact6-}; c=${c%-v42}
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       [ -f "$OUT40/compact_$c/eval_models_test.json" ] || step "eval-compact-$c-v40"
-      second_eval "$c" "$OUT42/models_compact6" "$OUT42/compact6_$c" "$OUT37/route_$c/eval_models_test.json" \
+      routed_eval "$c" "$OUT42/models_compact6" "$OUT42/compact6_$c" "$OUT37/route_$c/eval_models_test.json" \
         "$OUT40/compact_$c/eval_models_test.json" ;;
     gallery-compact6-v42)  # the gallery of models_compact6 (as gallery-compact-v40): OUT42/gallery_compact6{,_side}.png
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
@@ -2819,17 +2825,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       routed_swap "$OUT42/models_routed6" "$OUT43/models_second3" "$OUT43/models_routed7" mesh_predictor_second.onnx
       compact_folder "$OUT43/models_routed7" "$OUT43/models_compact7"
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx router.onnx; do
-        cmp "$OUT43/models_compact7/$f" "$OUT42/models_compact6/$f"
-      done ;;
+      same_except "$OUT43/models_compact7" "$OUT42/models_compact6" mesh_predictor_second.onnx ;;
     eval-compact7-clean-v43|eval-compact7-side-v43|eval-compact7-strong-v43)  # models_compact7 on the same drawings as
       # eval-compact6-*-v42, into OUT43/compact7_<case>; its mean beside the twenty-first's, the int8-stored bundle
       # before the second route's (eval-compact-*-v40) and models_compact6's, the paired differences, the routes
       local c=${1#eval-compact7-}; c=${c%-v43}
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
       [ -f "$OUT42/compact6_$c/eval_models_test.json" ] || step "eval-compact6-$c-v42"
-      second_eval "$c" "$OUT43/models_compact7" "$OUT43/compact7_$c" "$OUT37/route_$c/eval_models_test.json" \
+      routed_eval "$c" "$OUT43/models_compact7" "$OUT43/compact7_$c" "$OUT37/route_$c/eval_models_test.json" \
         "$OUT40/compact_$c/eval_models_test.json" "$OUT42/compact6_$c/eval_models_test.json" ;;
     gallery-compact7-v43)  # the gallery of models_compact7: OUT43/gallery_compact7{,_side}.png
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
@@ -2888,10 +2891,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$pick/mesh_predictor.onnx" ] || step check-third-v44
       [ -f "$OUT43/models_routed7/router.onnx" ] || step compact7-v43
       routed_swap "$OUT43/models_routed7" "$pick" "$OUT44/models_routed8" mesh_predictor_third.onnx
-      sketchmesh router export "$RUNS37/router" --models "$OUT44/models_routed8" \
-        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
-        --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
-        --route "mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")" --threshold "${ROUTE_THRESHOLD:-0.8}"
+      router_export "$OUT44/models_routed8" "$ROUTES3"
       router_diff "$OUT43/models_routed7" "$OUT44/models_routed8"
       du -b "$OUT44"/models_routed8/*.onnx ;;
     compact8-v44)  # models_routed8 stored as the bundle is (compact_folder) into OUT44/models_compact8; its networks but
@@ -2899,17 +2899,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT44/models_routed8/router.onnx" ] || step routed8-v44
       [ -f "$OUT43/models_compact7/router.onnx" ] || step compact7-v43
       compact_folder "$OUT44/models_routed8" "$OUT44/models_compact8"
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx; do
-        cmp "$OUT44/models_compact8/$f" "$OUT43/models_compact7/$f"
-      done ;;
+      same_except "$OUT44/models_compact8" "$OUT43/models_compact7" router.onnx mesh_predictor_third.onnx ;;
     eval-compact8-clean-v44|eval-compact8-side-v44|eval-compact8-strong-v44)  # models_compact8 on the same drawings as
       # eval-compact7-*-v43, into OUT44/compact8_<case>; its mean beside the twenty-first's, the int8-stored bundle with
       # the legged route alone (eval-compact-*-v40) and models_compact7's, the paired differences, the three routes
       local c=${1#eval-compact8-}; c=${c%-v44}
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
       [ -f "$OUT43/compact7_$c/eval_models_test.json" ] || step "eval-compact7-$c-v43"
-      ROUTE_GROUPS=$ROUTES3 second_eval "$c" "$OUT44/models_compact8" "$OUT44/compact8_$c" \
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT44/models_compact8" "$OUT44/compact8_$c" \
         "$OUT37/route_$c/eval_models_test.json" "$OUT40/compact_$c/eval_models_test.json" \
         "$OUT43/compact7_$c/eval_models_test.json" ;;
     gallery-compact8-v44)  # the gallery of models_compact8: OUT44/gallery_compact8{,_side}.png
@@ -2959,17 +2956,14 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
       routed_swap "$OUT44/models_routed8" "$OUT45/models_third2" "$OUT45/models_routed9" mesh_predictor_third.onnx
       compact_folder "$OUT45/models_routed9" "$OUT45/models_compact9"
-      local f
-      for f in generator.onnx mesh_predictor.onnx mesh_predictor_legged.onnx mesh_predictor_second.onnx router.onnx; do
-        cmp "$OUT45/models_compact9/$f" "$OUT44/models_compact8/$f"
-      done ;;
+      same_except "$OUT45/models_compact9" "$OUT44/models_compact8" mesh_predictor_third.onnx ;;
     eval-compact9-clean-v45|eval-compact9-side-v45|eval-compact9-strong-v45)  # models_compact9 on the same drawings as
       # eval-compact8-*-v44, into OUT45/compact9_<case>; its mean beside the twenty-first's, eval-compact-*-v40's,
       # models_compact7's and models_compact8's, the paired differences, the three routes
       local c=${1#eval-compact9-}; c=${c%-v45}
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
       [ -f "$OUT44/compact8_$c/eval_models_test.json" ] || step "eval-compact8-$c-v44"
-      ROUTE_GROUPS=$ROUTES3 second_eval "$c" "$OUT45/models_compact9" "$OUT45/compact9_$c" \
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT45/models_compact9" "$OUT45/compact9_$c" \
         "$OUT37/route_$c/eval_models_test.json" "$OUT40/compact_$c/eval_models_test.json" \
         "$OUT43/compact7_$c/eval_models_test.json" "$OUT44/compact8_$c/eval_models_test.json" ;;
     gallery-compact9-v45)  # the gallery of models_compact9: OUT45/gallery_compact9{,_side}.png
