@@ -353,6 +353,8 @@ RUNS46=${RUNS46:-runs/v46}
 OUT46=${OUT46:-out/v46}
 DATA46N=${DATA46N:-data/third2750v4}
 DATA46=${DATA46:-data/third4350v4}
+RUNS47=${RUNS47:-runs/v47}
+OUT47=${OUT47:-out/v47}
 OUT43=${OUT43:-out/v43}
 DATA43N=${DATA43N:-data/second2750v4}
 DATA43=${DATA43:-data/second4350v4}
@@ -367,6 +369,7 @@ ROUTES2="mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}") mesh_predictor_s
 ROUTES3="$ROUTES2 mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")"
 BUNDLE44=${BUNDLE44:-$OUT44/models_compact8}  # the folder latency-, tradeoff- and docs-v44 measure
 BUNDLE45=${BUNDLE45:-$OUT45/models_compact9}  # the folder latency-, tradeoff- and docs-v45 measure
+BUNDLE47=${BUNDLE47:-$OUT47/models_compact10}  # the folder latency-, tradeoff- and docs-v47 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -551,9 +554,15 @@ first_check() {  # a specialist's first round, the run $1, on its choice set $2 
   # train split, 4 grid views each; rendered, or completed, first): round_check beside the twenty-first as $3/models_$4,
   # into $3/check_$4
   local run=$1 choice=$2 out=$3 name=$4; shift 4
+  choice_data "$choice" "$@"
+  round_check "$out" "$run" "$name" "$choice" "check_$name" "$OUT36/models_twentyfirst"
+}
+
+choice_data() {  # a specialist's choice set $1: shapes 1200-1249 of the categories $2... (train split, 4 grid views each);
+  # resumes (a complete folder is left as it is)
+  local choice=$1; shift
   sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --categories "$@" \
     --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$choice"
-  round_check "$out" "$run" "$name" "$choice" "check_$name" "$OUT36/models_twentyfirst"
 }
 
 routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the model folder $2 as $4
@@ -722,6 +731,12 @@ export_pair() {  # training run $1 exported as float32 and int8 into $2/models_f
 models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder $2
   mkdir -p "$2"
   for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
+}
+
+bundle_from_git() {  # every network of commit $1's assets/models (a routed bundle: router and specialists too) into folder $2
+  rm -rf "$2"; mkdir -p "$2"
+  local f
+  for f in $(git ls-tree --name-only "$1" assets/models/ | grep '\.onnx$'); do git show "$1:$f" > "$2/$(basename "$f")"; done
 }
 
 eval_against() {  # $1 split, $2 out folder, $3 run, then baseline runs: the case of eval_case's EVAL_EXTRA from the
@@ -3009,6 +3024,90 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
         "$OUT44/models_third" "$OUT45/models_third2" ;;
     third3-v46)  # the third specialist's third round: data-v46 predictor-v46-third3 check-third-v46 (about 50 min)
       for s2 in data-v46 predictor-v46-third3 check-third-v46; do step "$s2"; done ;;
+    bundle24-v47)  # the twenty-fourth bundle as shipped (git TWENTYFOURTH [3411188], its six files) into OUT47/models_bundle24,
+      # and its third specialist beside the twenty-first's generator (git TWENTYFIRST [2a2eadb]) into
+      # OUT47/models_bundle_third: on any machine, what the v47 steps start from (the runs of v44-v46 stayed on the machine
+      # that trained them: a new machine on 2026-11-29 had none)
+      bundle_from_git "${TWENTYFOURTH:-3411188}" "$OUT47/models_bundle24"
+      [ -f "$OUT36/models_twentyfirst/generator.onnx" ] || models_from_git "${TWENTYFIRST:-2a2eadb}" "$OUT36/models_twentyfirst"
+      rm -rf "$OUT47/models_bundle_third"; mkdir -p "$OUT47/models_bundle_third"
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT47/models_bundle_third/"
+      cp "$OUT47/models_bundle24/mesh_predictor_third.onnx" "$OUT47/models_bundle_third/mesh_predictor.onnx" ;;
+    import-third-v47)  # the bundled third specialist (the second round's, int8-stored) back as a run
+      # (RUNS47/bundle_third/predictor: its weights made float32, batch norms calibrated on DATA46's generated images)
+      [ -f "$OUT47/models_bundle_third/mesh_predictor.onnx" ] || step bundle24-v47
+      [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
+      [ -f "$RUNS47/bundle_third/predictor/config.json" ] || sketchmesh import-models "$OUT47/models_bundle_third" \
+        --out "$RUNS47/bundle_third" --only predictor --data "$DATA46" --threads 2 ;;
+    predictor-v47-third3)  # the third round as predictor-v46-third3 planned it, on a machine without predictor-v45-third2's
+      # run: the bundled third specialist (import-third-v47) trained on along a new cosine by the same recipe and rate on
+      # DATA46 into RUNS47/third3; V36_ITERS [3000], V36_MINUTES [65] at most; resumes
+      [ -f "$RUNS47/bundle_third/predictor/config.json" ] || step import-third-v47
+      legs_round "$RUNS47/bundle_third/predictor" "$DATA46" "$RUNS47/third3" ;;
+    check-third-v47)  # predictor-v47-third3's run exported as the specialists are (OUT47/models_third3) and scored beside the
+      # twenty-first and the bundled third specialist (as shipped, int8-stored) on the choice set DATA44C (rendered
+      # first where missing, as check-third-v44 did), into OUT47/check_third; then its paired gains
+      [ -f "$RUNS47/third3/config.json" ] || step predictor-v47-third3
+      [ -f "$OUT47/models_bundle_third/mesh_predictor.onnx" ] || step bundle24-v47
+      choice_data "$DATA44C" "${THIRD[@]}"
+      round_check "$OUT47" "$RUNS47/third3" third3 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT47/models_bundle_third" ;;
+    third3-v47)  # the third specialist's third round from the bundle (about 75 min on 2 cores from a bare machine)
+      for s2 in bundle24-v47 data-v46 import-third-v47 predictor-v47-third3 check-third-v47; do step "$s2"; done ;;
+    data-test-v47)  # DATA36A [data/test100e4] alone (as route-v36 renders it: DATA2's 139 test shapes at 48 views); resumes
+      sketchmesh data --source procedural --shapes-per-category 100 --views 12 --elevations 0 15 30 45 --splits test \
+        --workers 2 --out "$DATA36A" ;;
+    eval-bundle24-clean-v47|eval-bundle24-side-v47|eval-bundle24-strong-v47)  # the twenty-fourth bundle as shipped on
+      # every test sketch of the case, into OUT47/bundle24_<case>: eval-compact9-*-v45's figures again on a new machine,
+      # and what compact10 is paired against
+      local c=${1#eval-bundle24-}; c=${c%-v47}
+      [ -f "$OUT47/models_bundle24/router.onnx" ] || step bundle24-v47
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT47/models_bundle24" "$OUT47/bundle24_$c" ;;
+    compact10-v47)  # the twenty-fourth bundle with check-third-v47's specialist stored as the bundle is (compact_model: int8
+      # weights, one scale per output channel) as mesh_predictor_third.onnx: OUT47/models_compact10; its other files
+      # checked byte-equal to the bundle's
+      [ -f "$OUT47/models_third3/mesh_predictor.onnx" ] || step check-third-v47
+      [ -f "$OUT47/models_bundle24/router.onnx" ] || step bundle24-v47
+      rm -rf "$OUT47/models_compact10"; cp -r "$OUT47/models_bundle24" "$OUT47/models_compact10"
+      python3 -c 'import sys; from engine.bench import compact_model; compact_model(sys.argv[1], sys.argv[2])' \
+        "$OUT47/models_third3/mesh_predictor.onnx" "$OUT47/models_compact10/mesh_predictor_third.onnx"
+      ls -l "$OUT47/models_third3/mesh_predictor.onnx" "$OUT47/models_compact10/mesh_predictor_third.onnx"
+      same_except "$OUT47/models_compact10" "$OUT47/models_bundle24" mesh_predictor_third.onnx ;;
+    eval-compact10-clean-v47|eval-compact10-side-v47|eval-compact10-strong-v47)  # models_compact10 on the same drawings as
+      # eval-bundle24-*-v47, into OUT47/compact10_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact10-}; c=${c%-v47}
+      [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
+      [ -f "$OUT47/bundle24_$c/eval_models_test.json" ] || step "eval-bundle24-$c-v47"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT47/models_compact10" "$OUT47/compact10_$c" \
+        "$OUT47/bundle24_$c/eval_models_test.json" ;;
+    gallery-compact10-v47)  # the gallery of models_compact10: OUT47/gallery_compact10{,_side}.png
+      [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
+      route_gallery "$OUT47/models_compact10" "$OUT47/gallery_compact10" ;;
+    third3-route-v47)  # the third round routed and measured but for latency, each case beside the bundle's own eval of it
+      # (which a new machine lacks), clean first (about 65 min on the 2 cores of 2026-11-29 after third3-v47)
+      for s2 in data-test-v47 eval-bundle24-clean-v47 compact10-v47 eval-compact10-clean-v47 eval-bundle24-side-v47 \
+          eval-compact10-side-v47 eval-bundle24-strong-v47 eval-compact10-strong-v47 gallery-compact10-v47; do
+        step "$s2"
+      done ;;
+    versus-v47)  # from the JSONs already written: the third round on the choice set, paired and per category
+      # (check-third-v47), and where models_compact10's router sent every test drawing of each case
+      choice_versus "$OUT47/check_third/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT47/compact10" ;;
+    latency-bundle-v47)  # the app's path timed for BUNDLE47 (bundle_latency; run it alone) into OUT47/latency_bundle
+      [ -f "$BUNDLE47/router.onnx" ] || [ "$BUNDLE47" != "$OUT47/models_compact10" ] || step compact10-v47
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_latency "$BUNDLE47" "$OUT47/latency_bundle" ;;
+    tradeoff-bundle-v47)  # error against run time for BUNDLE47 (bundle_tradeoff; run it alone) into OUT47/tradeoff_bundle
+      [ -f "$BUNDLE47/router.onnx" ] || [ "$BUNDLE47" != "$OUT47/models_compact10" ] || step compact10-v47
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_tradeoff "$BUNDLE47" "$OUT47/tradeoff_bundle" ;;
+    docs-v47)  # the README's gallery and error-against-run-time plot, of BUNDLE47 (bundle_docs): OUT47/gallery_bundle*
+      [ -f "$OUT47/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v47
+      bundle_docs "$BUNDLE47" "$OUT47/gallery_bundle" "$OUT47/tradeoff_bundle" ;;
+    ship-compact10-v47)  # models_compact10's third specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
+      ship_files "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
