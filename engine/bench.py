@@ -31,6 +31,7 @@ import numpy as np
 
 from engine import contract as C
 from engine.errors import MissingExtraError, ModelError, SketchInputError
+from engine.graph import SUBPIXEL_KERNEL_SUFFIX
 from engine.models import model_paths, resolve_models_dir
 
 STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
@@ -150,7 +151,8 @@ def _int8_weights(model) -> int:
     127), behind ``Cast`` to float32 and ``Mul`` by the scales producing the old name. The two nodes compute from
     initialisers alone, so ONNX Runtime folds them when it loads the model: the file holds a byte per weight, the arithmetic
     stays float32. A weight feeding anything else, or several nodes, is left alone: a basis multiplied straight into
-    vertex positions (the predictor's ``MatMul``) carries its rounding into the mesh. Returns how many were stored."""
+    vertex positions (the predictor's ``MatMul``) carries its rounding into the mesh. A Conv weight that
+    :func:`engine.graph.subpixel_model` reads into sub-pixel kernels counts as the Conv's. Returns how many were stored."""
     from onnx import TensorProto, helper, numpy_helper
 
     graph = model.graph
@@ -173,6 +175,8 @@ def _int8_weights(model) -> int:
             axis = 0
         elif n.op_type == "Gemm" and list(n.input).index(name) == 1:
             axis = 0 if any(a.name == "transB" and a.i for a in n.attribute) else 1
+        elif n.op_type == "Reshape" and list(n.input).index(name) == 0 and n.output[0].endswith(SUBPIXEL_KERNEL_SUFFIX):
+            axis = 0  # a Conv weight engine.graph.subpixel_model reads into its phase kernels: output channels first
         else:
             continue
         if name in inits and inits[name].data_type != TensorProto.FLOAT:

@@ -126,6 +126,12 @@ class LoadedModel:
     input_shapes: dict[str, list] = field(default_factory=dict)
     output_shapes: dict[str, list] = field(default_factory=dict)
 
+    @property
+    def batch_dynamic(self) -> bool:
+        """Whether the input's batch dimension is dynamic (a model may fix it at 1: then it runs one row at a time)."""
+        dims = self.input_shapes.get(self.input_name)
+        return bool(dims) and not isinstance(dims[0], int)
+
     def info(self) -> dict:
         """JSON-ready description: path, role, metadata, shapes, template, file size."""
         return {

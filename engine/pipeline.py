@@ -12,11 +12,11 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
 5. ``assemble``    template vertices + local + global -> :class:`engine.mesh.Mesh` in the view
    frame (:mod:`engine.camera`);
 
-   with ``mirror_average`` on, stages 2-5 run a second time on the drawing flipped left to right,
-   and the two meshes are averaged vertex by vertex, the second mirrored back
-   (:func:`engine.icosphere.mirror_average`): each stage's time is the sum of its two runs (the
-   averaging counts in ``assemble``), the normal image kept is the plain drawing's, and both runs use the
-   predictor the plain drawing was routed to;
+   with ``mirror_average`` on, stages 2-5 also run on the drawing flipped left to right, and the two
+   meshes are averaged vertex by vertex, the second mirrored back (:func:`engine.icosphere.mirror_average`):
+   the two drawings go through each network as one batch of two (a network whose batch dimension is fixed
+   at 1 runs twice), each stage's time covers both (the averaging counts in ``assemble``), the normal image
+   kept is the plain drawing's, and both use the predictor the plain drawing was routed to;
 6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off;
 7. ``repair``      optional (``repair_folds``): where the final mesh crosses itself, smooth just there until it
@@ -130,6 +130,15 @@ def downsample_normals(normals_nchw: np.ndarray, size: int = C.PREDICTOR_INPUT_S
     hwc = np.ascontiguousarray(a[0].transpose(1, 2, 0))
     small = cv2.resize(hwc, (size, size), interpolation=cv2.INTER_AREA)
     return np.ascontiguousarray(small.transpose(2, 0, 1)[None])
+
+
+def _run_batch(model, names: list[str], x: np.ndarray) -> list[np.ndarray]:
+    """``model``'s outputs ``names`` for the batch ``x``: one run, or one per row where the model's batch dimension is
+    fixed at 1 (the contract allows it), stacked."""
+    if len(x) == 1 or model.batch_dynamic:
+        return model.session.run(names, {model.input_name: x})
+    rows = [model.session.run(names, {model.input_name: x[i:i + 1]}) for i in range(len(x))]
+    return [np.concatenate(parts) for parts in zip(*rows)]
 
 
 def assemble_mesh(local_offset: np.ndarray, global_offset: np.ndarray, level: int, radius: float) -> Mesh:
@@ -366,40 +375,39 @@ class SketchEngine:
 
     def _run_models(self, raster: np.ndarray, timings: dict[str, float], mirror: bool) -> _Entry:
         gen, pred = self._generator, self._predictor
-        stages = dict.fromkeys(("generator", "downsample", "predictor", "assemble"), 0.0)
-        meshes, kept, route, category = [], None, None, None
-        for flip in (False, True) if mirror else (False,):
-            x = (raster[:, ::-1] if flip else raster)[None, None].astype(np.float32)
-            with self._run_lock:
-                t0 = time.perf_counter()
-                (normals,) = gen.session.run([C.GENERATOR_OUTPUT], {gen.input_name: x})
-                t1 = time.perf_counter()
-                expected = (1, 3, C.SKETCH_SIZE, C.SKETCH_SIZE)
-                if normals.shape != expected:
-                    raise ModelError(f"{gen.path}: generator output must be {expected}, got {normals.shape}")
-                if not np.all(np.isfinite(normals)):
-                    raise ModelError(f"{gen.path}: the generator produced NaN or inf (broken model?)")
-                normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
-                small = downsample_normals(normals)
-                t2 = time.perf_counter()
-                if self._router is not None and not flip:
-                    route, category = self._route(small)
-                    if route is not None:  # the load lock is never held while waiting for the run lock
-                        pred = self._specialist(route)
-                local, glob = pred.session.run(pred.output_names, {pred.input_name: small})
-                t3 = time.perf_counter()
-            meshes.append(assemble_mesh(local, glob, pred.template_level, pred.template_radius))
-            t4 = time.perf_counter()
-            kept = normals if kept is None else kept
-            for name, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
-                stages[name] += dt * 1e3
+        x = raster[None, None].astype(np.float32)
+        if mirror:  # the flipped drawing in the same batch: one run of each network serves both (module doc)
+            x = np.concatenate([x, x[..., ::-1]])
+        n = len(x)
+        route, category = None, None
+        with self._run_lock:
+            t0 = time.perf_counter()
+            (normals,) = _run_batch(gen, [C.GENERATOR_OUTPUT], x)
+            t1 = time.perf_counter()
+            expected = (n, 3, C.SKETCH_SIZE, C.SKETCH_SIZE)
+            if normals.shape != expected:
+                raise ModelError(f"{gen.path}: generator output must be {expected}, got {normals.shape}")
+            if not np.all(np.isfinite(normals)):
+                raise ModelError(f"{gen.path}: the generator produced NaN or inf (broken model?)")
+            normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
+            small = np.concatenate([downsample_normals(normals[i:i + 1]) for i in range(n)])
+            t2 = time.perf_counter()
+            if self._router is not None:  # the plain drawing is routed; the flipped one follows it
+                route, category = self._route(small[:1])
+                if route is not None:  # the load lock is never held while waiting for the run lock
+                    pred = self._specialist(route)
+            local, glob = _run_batch(pred, pred.output_names, small)
+            t3 = time.perf_counter()
+        meshes = [assemble_mesh(local[i:i + 1], glob[i:i + 1], pred.template_level, pred.template_radius)
+                  for i in range(n)]
         mesh = meshes[0]
         if mirror:
-            t0 = time.perf_counter()
             mesh = Mesh(mirror_average(meshes[0].vertices, meshes[1].vertices).astype(np.float32), mesh.faces)
-            stages["assemble"] += (time.perf_counter() - t0) * 1e3
+        t4 = time.perf_counter()
+        kept = np.ascontiguousarray(normals[:1])
         kept.setflags(write=False)
-        timings.update(stages)
+        timings.update(zip(("generator", "downsample", "predictor", "assemble"),
+                           ((t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3, (t4 - t3) * 1e3)))
         return _Entry(mesh, kept, route, category)
 
     def predict(self, sketch, *, want_normals: bool = False, refine: int | None = None) -> Prediction:

@@ -167,6 +167,44 @@ def test_a_flipped_drawing_is_the_x_negated_mesh_seen_by_the_sketch_camera():
     assert np.mean(sil[1] != sil[0][:, ::-1]) < 1e-3
 
 
+def _fix_batch_at_one(src: Path, dst: Path) -> None:
+    """The model ``src`` with its inputs' and outputs' batch dimension fixed at 1 (the contract allows it), as ``dst``."""
+    import onnx
+
+    m = onnx.load(str(src))
+    for v in [*m.graph.input, *m.graph.output]:
+        v.type.tensor_type.shape.dim[0].dim_value = 1
+    onnx.save(m, str(dst))
+
+
+def test_mirror_average_with_batch_fixed_at_one(tmp_path, models):
+    """The two drawings of mirror averaging go through each network as one batch of two; a network whose batch dimension
+    is fixed at 1 runs once per drawing instead, to the same mesh."""
+    fixed = tmp_path / "fixed"
+    fixed.mkdir()
+    for name in (C.GENERATOR_FILE, C.PREDICTOR_FILE):
+        _fix_batch_at_one(models / name, fixed / name)
+    eng = SketchEngine(fixed, threads=1, mirror_average=True)
+    eng.load()
+    assert not eng._generator.batch_dynamic and not eng._predictor.batch_dynamic
+    strokes = _strokes(3.0)
+    want = SketchEngine(models, threads=1, mirror_average=True)
+    want.load()
+    assert want._generator.batch_dynamic and want._predictor.batch_dynamic
+    got, ref = eng.predict(strokes, want_normals=True), want.predict(strokes, want_normals=True)
+    np.testing.assert_allclose(got.mesh.vertices, ref.mesh.vertices, atol=ORT_ATOL)
+    np.testing.assert_allclose(got.normals, ref.normals, atol=ORT_ATOL)
+    with pytest.raises(ModelError, match="batch dimension must be dynamic or 1"):
+        bad = tmp_path / "two"
+        bad.mkdir()
+        import onnx
+
+        m = onnx.load(str(models / C.GENERATOR_FILE))
+        m.graph.input[0].type.tensor_type.shape.dim[0].dim_value = 2
+        onnx.save(m, str(bad / C.GENERATOR_FILE))
+        load_generator(bad / C.GENERATOR_FILE)
+
+
 def test_cli_infer_mirror_average(tmp_path, models, sketch_png):
     out_plain, out_mirror = tmp_path / "plain.obj", tmp_path / "mirror.obj"
     for out, extra in ((out_plain, []), (out_mirror, ["--mirror-average"])):

@@ -51,6 +51,7 @@ import torch
 from engine import contract
 from engine.errors import ModelError
 from engine.fileio import StagedWrites
+from engine.graph import subpixel_bytes
 from engine.icosphere import TEMPLATE_RADIUS
 from training.loop.config import TrainConfig
 
@@ -310,6 +311,8 @@ def export_models(
             data = _int8_stored(data)
             gq, gtol = "int8-weights", GENERATOR_INT8_TOLERANCE  # single edge pixels move most: a
             # sanity bound, as for int8-all
+        data = subpixel_bytes(data, "generator", require=False)  # the resize decoder as sub-pixel convolutions
+        # (engine.graph: the same arithmetic without passes over the large images; checked against the graph before)
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
                             contract.META_GENERATOR_ARCH: str(getattr(g, "arch", "pix2pix")),
