@@ -31,7 +31,7 @@ import numpy as np
 
 from engine import contract as C
 from engine.errors import MissingExtraError, ModelError, SketchInputError
-from engine.graph import SUBPIXEL_KERNEL_SUFFIX
+from engine.graph import SUBPIXEL_KERNEL_SUFFIX, fold_subpixel_kernels
 from engine.models import model_paths, resolve_models_dir
 
 STAGES = ("preprocess", "generator", "downsample", "predictor", "assemble", "export", "total")
@@ -103,7 +103,8 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
     """Dynamic int8 quantisation of one model (weights int8, activations quantised at run time).
 
     ``graph.value_info`` is cleared first (dynamo-exported models otherwise fail shape
-    inference, see MEASUREMENTS.md), and float16-stored weights are made float32 initialisers;
+    inference, see MEASUREMENTS.md), and float16-stored weights (and a sub-pixel generator's kernels,
+    :func:`engine.graph.fold_subpixel_kernels`) are made float32 initialisers;
     metadata is kept and ``quantization`` set to ``int8-dynamic``.
 
     Raises:
@@ -124,6 +125,7 @@ def quantize_model(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
             model = onnx.load(str(src))
             del model.graph.value_info[:]
             _float32_weights(model)
+            fold_subpixel_kernels(model)  # a sub-pixel generator's kernels, computed in its graph, as initialisers
             cleared = Path(tmp) / "input.onnx"
             onnx.save(model, str(cleared))
             root.setLevel(logging.ERROR)  # quantize_dynamic warns on the root logger about pre-processing

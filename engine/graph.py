@@ -196,6 +196,29 @@ def _subpixel(model) -> int:
     return done
 
 
+def fold_subpixel_kernels(model) -> int:
+    """In place: the kernels and biases :func:`subpixel_model` computes in the graph become float32 initialisers (what
+    ONNX Runtime folds them to at load), for tools that look for a Conv's weight among the initialisers (dynamic int8
+    quantisation). Returns how many tensors were folded."""
+    from onnx import TensorProto, numpy_helper
+
+    graph = model.graph
+    made = {o for n in graph.node for o in n.output}
+    names = [o for o in made if o.endswith(("__subpixel_weight", "__subpixel_bias"))]
+    if not names:
+        return 0
+    values = _probe(model, dict.fromkeys(names, TensorProto.FLOAT))
+    keep = [n for n in graph.node if not set(n.output) & set(names)]
+    inits = [*graph.initializer, *(numpy_helper.from_array(np.asarray(values[k], np.float32), k) for k in names)]
+    nodes = _live(keep, {o.name for o in graph.output})
+    del graph.node[:]
+    graph.node.extend(nodes)
+    used = {i for n in graph.node for i in n.input}
+    del graph.initializer[:]
+    graph.initializer.extend(i for i in inits if i.name in used)
+    return len(names)
+
+
 def _live(nodes: list, outputs: set[str]) -> list:
     """The nodes something needs: those feeding the graph outputs, directly or through others."""
     producer = {o: n for n in nodes for o in n.output}

@@ -141,3 +141,21 @@ def test_int8_storage_before_or_after_the_rewrite(tmp_path):
     ref = _run(tmp_path / "q.onnx", x)
     for name in ("qs.onnx", "sq.onnx"):
         np.testing.assert_allclose(_run(tmp_path / name, x), ref, atol=SUBPIXEL_ATOL)
+
+
+def test_dynamic_int8_quantises_the_subpixel_kernels(tmp_path):
+    """quantize_model folds the kernels the rewrite computes in its graph into initialisers (fold_subpixel_kernels):
+    the rewritten convolution is quantised like any other, and its outputs stay near the float model's."""
+    from engine.bench import quantize_model
+
+    src = tmp_path / "a.onnx"
+    _chain_model(src, cin=16, cout=16)
+    subpixel_model(src, tmp_path / "s.onnx")
+    quantize_model(tmp_path / "s.onnx", tmp_path / "q.onnx")
+    ops = [n.op_type for n in onnx.load(str(tmp_path / "q.onnx")).graph.node]
+    assert "ConvInteger" in ops and "Conv" not in ops and "DepthToSpace" in ops and "MatMul" not in ops
+    x = np.random.default_rng(4).standard_normal((2, 16, 6, 8)).astype(np.float32)
+    quantize_model(src, tmp_path / "q0.onnx")  # the original chain quantised: the error int8 costs it
+    err = np.abs(_run(tmp_path / "q.onnx", x) - _run(src, x)).max()
+    err0 = np.abs(_run(tmp_path / "q0.onnx", x) - _run(src, x)).max()
+    assert 0 < err < 2 * err0 + 1e-3  # int8 weights and activations: as near the float model as the original's

@@ -370,6 +370,11 @@ ROUTES3="$ROUTES2 mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")"
 BUNDLE44=${BUNDLE44:-$OUT44/models_compact8}  # the folder latency-, tradeoff- and docs-v44 measure
 BUNDLE45=${BUNDLE45:-$OUT45/models_compact9}  # the folder latency-, tradeoff- and docs-v45 measure
 BUNDLE47=${BUNDLE47:-$OUT47/models_compact10}  # the folder latency-, tradeoff- and docs-v47 measure
+RUNS48=${RUNS48:-runs/v48}
+OUT48=${OUT48:-out/v48}
+DATA48N=${DATA48N:-data/third3350v4}
+DATA48=${DATA48:-data/third5800v4}
+BUNDLE48=${BUNDLE48:-$OUT48/models_fast}  # the folder latency-, tradeoff- and docs-v48 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -575,6 +580,15 @@ routed_eval() {  # route_eval of a folder routing to the specialists ($1 the cas
   # $4... earlier results), then where its router sent the drawings, route by route (ROUTE_GROUPS [ROUTES2])
   route_eval "$@"
   ROUTE_GROUPS=${ROUTE_GROUPS:-$ROUTES2} route_counts "$3/eval_models_test.json"
+}
+
+compact_swap() {  # a copy $3 (replaced) of the model folder $1 with the specialist $2/mesh_predictor.onnx stored as the
+  # bundle stores it (compact_model: int8 weights, one scale per output channel) as $4; its other files checked byte-equal
+  rm -rf "$3"; cp -r "$1" "$3"
+  python3 -c 'import sys; from engine.bench import compact_model; compact_model(sys.argv[1], sys.argv[2])' \
+    "$2/mesh_predictor.onnx" "$3/$4"
+  ls -l "$2/mesh_predictor.onnx" "$3/$4"
+  same_except "$3" "$1" "$4"
 }
 
 router_diff() {  # the largest difference of the routed folder $2's router probabilities from $1's on 64 random images and
@@ -3069,11 +3083,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # checked byte-equal to the bundle's
       [ -f "$OUT47/models_third3/mesh_predictor.onnx" ] || step check-third-v47
       [ -f "$OUT47/models_bundle24/router.onnx" ] || step bundle24-v47
-      rm -rf "$OUT47/models_compact10"; cp -r "$OUT47/models_bundle24" "$OUT47/models_compact10"
-      python3 -c 'import sys; from engine.bench import compact_model; compact_model(sys.argv[1], sys.argv[2])' \
-        "$OUT47/models_third3/mesh_predictor.onnx" "$OUT47/models_compact10/mesh_predictor_third.onnx"
-      ls -l "$OUT47/models_third3/mesh_predictor.onnx" "$OUT47/models_compact10/mesh_predictor_third.onnx"
-      same_except "$OUT47/models_compact10" "$OUT47/models_bundle24" mesh_predictor_third.onnx ;;
+      compact_swap "$OUT47/models_bundle24" "$OUT47/models_third3" "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
     eval-compact10-clean-v47|eval-compact10-side-v47|eval-compact10-strong-v47)  # models_compact10 on the same drawings as
       # eval-bundle24-*-v47, into OUT47/compact10_<case>; both means, the paired difference, the three routes
       local c=${1#eval-compact10-}; c=${c%-v47}
@@ -3108,6 +3118,160 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     ship-compact10-v47)  # models_compact10's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
       ship_files "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
+    data-v48)  # DATA48N: rifle, watercraft and sofa shapes 3350-3949 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA46 into DATA48, and the fifth generator's images (DATA46's rows copied, --reuse); resumes
+      [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
+      CATS="${THIRD[*]}" PER_CAT=600 legs_data 3350 "$DATA48N" "$DATA48" "$DATA46" reuse ;;
+    predictor-v48-third4)  # predictor-v47-third3's run trained on a fourth time along a new cosine (the same rate and
+      # recipe) on DATA48 (600 unseen shapes a category more again), into RUNS48/third4; V36_ITERS [3000], V36_MINUTES
+      # [65] at most; resumes
+      [ -f "$RUNS47/third3/config.json" ] || step predictor-v47-third3
+      [ -f "$DATA48/.cache/generated/normals16_mirror/info.json" ] || step data-v48
+      legs_round "$RUNS47/third3" "$DATA48" "$RUNS48/third4" ;;
+    check-third-v48)  # predictor-v48-third4's run exported as the specialists are (OUT48/models_third4) and scored beside the
+      # twenty-first and the third round (float16, as check-third-v47 exported it) on the choice set DATA44C, into
+      # OUT48/check_third; then its paired gains
+      [ -f "$RUNS48/third4/config.json" ] || step predictor-v48-third4
+      [ -f "$OUT47/models_third3/mesh_predictor.onnx" ] || step check-third-v47
+      choice_data "$DATA44C" "${THIRD[@]}"
+      round_check "$OUT48" "$RUNS48/third4" third4 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT47/models_third3" ;;
+    third4-v48)  # the third specialist's fourth round (about 75 min on 2 cores after third3-v47)
+      for s2 in data-v48 predictor-v48-third4 check-third-v48; do step "$s2"; done ;;
+    fast-v48)  # the twenty-fifth bundle (models_compact10) with its generator's decoder made sub-pixel convolutions
+      # (engine.graph.subpixel_model: the same arithmetic in another order, checked within 1e-4 of the stored graph; its
+      # weights stored as they were): OUT48/models_fast; the other files checked byte-equal
+      [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
+      rm -rf "$OUT48/models_fast"; mkdir -p "$OUT48"; cp -r "$OUT47/models_compact10" "$OUT48/models_fast"
+      python3 -c 'import sys; from engine.graph import subpixel_model; subpixel_model(sys.argv[1], sys.argv[2])' \
+        "$OUT47/models_compact10/generator.onnx" "$OUT48/models_fast/generator.onnx"
+      ls -l "$OUT47/models_compact10/generator.onnx" "$OUT48/models_fast/generator.onnx"
+      same_except "$OUT48/models_fast" "$OUT47/models_compact10" generator.onnx ;;
+    eval-fast-clean-v48|eval-fast-side-v48|eval-fast-strong-v48)  # models_fast on the same drawings as
+      # eval-compact10-*-v47 (the twenty-fifth bundle's, run before the engine batched the mirrored drawing), into
+      # OUT48/fast_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-fast-}; c=${c%-v48}
+      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
+      [ -f "$OUT47/compact10_$c/eval_models_test.json" ] || step "eval-compact10-$c-v47"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT48/models_fast" "$OUT48/fast_$c" \
+        "$OUT47/compact10_$c/eval_models_test.json" ;;
+    latency-fast-v48)  # the app's path timed (bundle_latency; run it alone) for models_compact10 and then models_fast, back
+      # to back on the same machine, into OUT48/latency_compact10 and OUT48/latency_fast; then each folder's stages
+      # (bench engine, fp32 and fp32+mirror, 60 runs) into OUT48/stages_<folder>.json
+      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      local f
+      for f in compact10 fast; do
+        local d="$OUT48/models_$f"; [ "$f" = compact10 ] && d="$OUT47/models_compact10"
+        bundle_latency "$d" "$OUT48/latency_$f"
+        sketchmesh bench engine --models "$d" --variants fp32,fp32+mirror --runs 60 --threads 2 \
+          --json "$OUT48/stages_$f.json"
+      done ;;
+    profile-generator-v48)  # where the generator's time goes, by operator, for models_compact10's and models_fast's
+      # (ONNX Runtime's profiler, 2 threads, 30 runs of one drawn test sketch after 3 untimed; run it alone)
+      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
+      python3 - "$OUT47/models_compact10/generator.onnx" "$OUT48/models_fast/generator.onnx" <<'PY'
+import collections, json, os, sys, tempfile
+import numpy as np
+import onnxruntime as ort
+from engine.preprocess import rasterize_strokes
+from engine.strokes import Stroke
+t = np.linspace(0, 2 * np.pi, 80)
+x = rasterize_strokes([Stroke(np.stack([200 + 90 * np.cos(t), 150 + 60 * np.sin(t)], 1)),
+                       Stroke([[130, 150], [270, 160]])])[None, None].astype(np.float32)
+for path in sys.argv[1:]:
+    so = ort.SessionOptions()
+    so.intra_op_num_threads, so.inter_op_num_threads = 2, 1
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    so.enable_profiling = True
+    so.profile_file_prefix = os.path.join(tempfile.mkdtemp(), "gen")
+    sess = ort.InferenceSession(path, so, providers=["CPUExecutionProvider"])
+    name = sess.get_inputs()[0].name
+    for _ in range(33):
+        sess.run(None, {name: x})
+    events = json.load(open(sess.end_profiling()))
+    starts = sorted(e["ts"] for e in events if e.get("name") == "model_run")
+    ops = collections.defaultdict(float)
+    for e in events:  # the first 3 runs untimed
+        if e.get("cat") == "Node" and e["name"].endswith("_kernel_time") and e["ts"] >= starts[3]:
+            ops[e["args"]["op_name"]] += e["dur"] / 1e3 / 30
+    top = ", ".join(f"{k} {v:.1f}" for k, v in sorted(ops.items(), key=lambda kv: -kv[1])[:7])
+    print(f"{path}: {sum(ops.values()):.1f} ms of operators a run (30 runs); {top}")
+PY
+      ;;
+    versus-fast-v48)  # from the JSONs already written: every test drawing's voxel IoU, models_fast against models_compact10,
+      # case by case: how many drawings differ at all, the largest difference, and how many were routed differently
+      python3 - "$OUT47/compact10" "$OUT48/fast" <<'PY'
+import json, sys
+old, new = sys.argv[1:]
+for case in ("clean", "side", "strong"):
+    try:
+        a, b = (json.load(open(f"{d}_{case}/eval_models_test.json")) for d in (old, new))
+    except FileNotFoundError as exc:
+        print(f"{case}: {exc.filename} missing")
+        continue
+    ca, cb = a["columns"][0], b["columns"][0]
+    views = {(r["shape_id"], v["view"]): v for r in a["rows"] for v in r["per_view"]}
+    diffs, routes, n = [], 0, 0
+    for r in b["rows"]:
+        for v in r["per_view"]:
+            w = views[(r["shape_id"], v["view"])]
+            diffs.append(abs(v["iou"][cb] - w["iou"][ca]))
+            routes += v["routes"][cb]["route"] != w["routes"][ca]["route"]
+            n += 1
+    print(f"{case}: {n} drawings, {sum(d > 0 for d in diffs)} with a different voxel IoU (largest difference "
+          f"{max(diffs):.2g}), {routes} routed differently")
+PY
+      ;;
+    fast-route-v48)  # models_fast measured: the three cases (paired against the twenty-fifth bundle's evals), latency, the
+      # error-against-run-time table and the docs (about 45 min on 2 cores)
+      for s2 in fast-v48 eval-fast-clean-v48 eval-fast-side-v48 eval-fast-strong-v48 latency-fast-v48 \
+          profile-generator-v48 versus-fast-v48 tradeoff-bundle-v48 docs-v48; do
+        step "$s2"
+      done ;;
+    ship-fast-v48)  # models_fast's generator becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
+      ship_files "$OUT48/models_fast" generator.onnx ;;
+    compact11-v48)  # models_fast (the twenty-sixth bundle) with check-third-v48's specialist stored as the bundle is as
+      # mesh_predictor_third.onnx: OUT48/models_compact11; its other files checked byte-equal
+      [ -f "$OUT48/models_third4/mesh_predictor.onnx" ] || step check-third-v48
+      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
+      compact_swap "$OUT48/models_fast" "$OUT48/models_third4" "$OUT48/models_compact11" mesh_predictor_third.onnx ;;
+    eval-compact11-clean-v48|eval-compact11-side-v48|eval-compact11-strong-v48)  # models_compact11 on the same drawings
+      # as eval-fast-*-v48, into OUT48/compact11_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact11-}; c=${c%-v48}
+      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
+      [ -f "$OUT48/fast_$c/eval_models_test.json" ] || step "eval-fast-$c-v48"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT48/models_compact11" "$OUT48/compact11_$c" \
+        "$OUT48/fast_$c/eval_models_test.json" ;;
+    gallery-compact11-v48)  # the gallery of models_compact11: OUT48/gallery_compact11{,_side}.png
+      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
+      route_gallery "$OUT48/models_compact11" "$OUT48/gallery_compact11" ;;
+    third4-route-v48)  # the fourth round routed and measured but for latency, clean first (about 30 min on 2 cores after
+      # fast-route-v48)
+      for s2 in compact11-v48 eval-compact11-clean-v48 eval-compact11-side-v48 eval-compact11-strong-v48 \
+          gallery-compact11-v48; do
+        step "$s2"
+      done ;;
+    versus-v48)  # from the JSONs already written: the fourth round on the choice set, paired and per category
+      # (check-third-v48), and where models_compact11's router sent every test drawing of each case
+      choice_versus "$OUT48/check_third/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT48/compact11" ;;
+    latency-bundle-v48)  # the app's path timed for BUNDLE48 (bundle_latency; run it alone) into OUT48/latency_bundle
+      [ -f "$BUNDLE48/router.onnx" ] || [ "$BUNDLE48" != "$OUT48/models_fast" ] || step fast-v48
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_latency "$BUNDLE48" "$OUT48/latency_bundle" ;;
+    tradeoff-bundle-v48)  # error against run time for BUNDLE48 (bundle_tradeoff; run it alone) into OUT48/tradeoff_bundle
+      [ -f "$BUNDLE48/router.onnx" ] || [ "$BUNDLE48" != "$OUT48/models_fast" ] || step fast-v48
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_tradeoff "$BUNDLE48" "$OUT48/tradeoff_bundle" ;;
+    docs-v48)  # the README's gallery and error-against-run-time plot, of BUNDLE48 (bundle_docs): OUT48/gallery_bundle*
+      [ -f "$OUT48/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v48
+      bundle_docs "$BUNDLE48" "$OUT48/gallery_bundle" "$OUT48/tradeoff_bundle" ;;
+    ship-compact11-v48)  # models_compact11's third specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
+      ship_files "$OUT48/models_compact11" mesh_predictor_third.onnx ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
