@@ -56,6 +56,11 @@ def _text(v) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
+def _dims(shape: list) -> list[int]:
+    """A concrete shape for a model input: a dynamic batch 1, other dynamic dimensions 64 (an image, not a pixel)."""
+    return [d if isinstance(d, int) and d > 0 else (1 if k == 0 else 64) for k, d in enumerate(shape)]
+
+
 def _probe(model, names: dict[str, int]) -> dict[str, np.ndarray]:
     """Values of the tensors ``names`` (name -> onnx element type) for an all-zero input (dynamic dimensions 1): the
     pads, scales and weights of the candidates, which the exporter computes in small constant subgraphs."""
@@ -73,7 +78,7 @@ def _probe(model, names: dict[str, int]) -> dict[str, np.ndarray]:
     for i in probe.graph.input:
         if i.name in {t.name for t in probe.graph.initializer}:
             continue
-        dims = [d.dim_value if d.HasField("dim_value") else 1 for d in i.type.tensor_type.shape.dim]
+        dims = _dims([d.dim_value if d.HasField("dim_value") else None for d in i.type.tensor_type.shape.dim])
         feeds[i.name] = np.zeros(dims, np.float32)
     sess = ort.InferenceSession(probe.SerializeToString(), providers=["CPUExecutionProvider"])
     outs = [o.name for o in sess.get_outputs()]
@@ -92,6 +97,8 @@ def _candidates(graph) -> list[tuple]:
         if r.op_type != "Resize" or len(r.input) < 3 or r.input[2] == "" or (len(r.input) > 3 and r.input[3]):
             continue
         ra = _attrs(r)
+        if "axes" in ra:  # opset 18: scales for chosen axes only
+            continue
         if (_text(ra.get("mode", "nearest")) != "nearest"
                 or _text(ra.get("coordinate_transformation_mode", "half_pixel")) != "asymmetric"
                 or _text(ra.get("nearest_mode", "round_prefer_floor")) != "floor"):
@@ -100,7 +107,8 @@ def _candidates(graph) -> list[tuple]:
         if len(pads) != 1 or pads[0].op_type != "Pad" or r.output[0] in outputs:
             continue
         p = pads[0]
-        if _text(_attrs(p).get("mode", "constant")) not in ("constant", "reflect", "edge") or len(p.input) < 2:
+        if (_text(_attrs(p).get("mode", "constant")) not in ("constant", "reflect", "edge") or len(p.input) < 2
+                or (len(p.input) > 3 and p.input[3])):  # opset 18: pads for chosen axes only
             continue
         convs = users.get(p.output[0], [])
         if len(convs) != 1 or convs[0].op_type != "Conv" or p.output[0] in outputs or convs[0].input[0] != p.output[0]:
@@ -153,6 +161,7 @@ def _subpixel(model) -> int:
                                                  "weight", "b1", "b4", "bs1", "bs2", "bias", "out4")}
         if set(names.values()) & taken:
             continue
+        taken |= set(names.values())
         new_inits += [numpy_helper.from_array(np.array([0, 0, 1, 1, 0, 0, 1, 1], np.int64), names["pads"]),
                       numpy_helper.from_array(np.array([cout * cin, 9], np.int64), names["s1"]),
                       numpy_helper.from_array(np.array([cout, cin, 4, 9], np.int64), names["s2"]),
@@ -191,8 +200,12 @@ def _subpixel(model) -> int:
     graph.node.extend(_topological(nodes, graph))
     used = {i for n in graph.node for i in n.input}
     inits_kept = [i for i in [*graph.initializer, *new_inits] if i.name in used]
+    dropped = {i.name for i in graph.initializer} - {i.name for i in inits_kept}
+    inputs_kept = [i for i in graph.input if i.name not in dropped]  # an initialiser listed as an input (old exporters)
     del graph.initializer[:]
     graph.initializer.extend(inits_kept)
+    del graph.input[:]
+    graph.input.extend(inputs_kept)
     return done
 
 
@@ -312,11 +325,15 @@ def subpixel_bytes(data: bytes, what: str = "model", *, require: bool = True) ->
     for kind in ("outline", "sparse", "noise"):
         feeds = {}
         for i in old.get_inputs():
-            dims = [d if isinstance(d, int) else 1 for d in i.shape]
-            feeds[i.name] = _check_input(kind, dims, rng)
-        for a, b, o in zip(old.run(None, feeds), fast.run(None, feeds), old.get_outputs()):
-            err = float(np.abs(np.asarray(a, np.float64) - np.asarray(b, np.float64)).max()) if np.size(a) else 0.0
-            if a.shape != b.shape or not err <= SUBPIXEL_ATOL:
+            feeds[i.name] = _check_input(kind, _dims(list(i.shape)), rng)
+        try:
+            pairs = list(zip(old.run(None, feeds), fast.run(None, feeds), old.get_outputs()))
+        except Exception as exc:  # noqa: BLE001 - onnxruntime raises its own types
+            raise ModelError(f"{what}: the rewritten graph does not run: {' '.join(str(exc).split())[:300]}") from None
+        for a, b, o in pairs:
+            same = a.shape == b.shape
+            err = float(np.abs(np.asarray(a, np.float64) - np.asarray(b, np.float64)).max()) if same and np.size(a) else 0.0
+            if not same or not err <= SUBPIXEL_ATOL:
                 raise ModelError(f"{what}: the rewritten graph's {o.name!r} differs from the original's by {err:.3g} "
                                  f"on {kind} input (shapes {a.shape} / {b.shape})")
     return new

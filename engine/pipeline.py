@@ -398,13 +398,16 @@ class SketchEngine:
                     pred = self._specialist(route)
             local, glob = _run_batch(pred, pred.output_names, small)
             t3 = time.perf_counter()
+            if len(local) != n or len(glob) != n:
+                raise ModelError(f"{pred.path}: a batch of {n} drawings gave {len(local)} local and {len(glob)} global "
+                                 "offsets (a predictor must keep the batch dimension)")
         meshes = [assemble_mesh(local[i:i + 1], glob[i:i + 1], pred.template_level, pred.template_radius)
                   for i in range(n)]
         mesh = meshes[0]
         if mirror:
             mesh = Mesh(mirror_average(meshes[0].vertices, meshes[1].vertices).astype(np.float32), mesh.faces)
         t4 = time.perf_counter()
-        kept = np.ascontiguousarray(normals[:1])
+        kept = normals[:1].copy()  # not a view: the cache keeps one image, not the batch
         kept.setflags(write=False)
         timings.update(zip(("generator", "downsample", "predictor", "assemble"),
                            ((t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3, (t4 - t3) * 1e3)))

@@ -46,7 +46,8 @@ def test_phase_matrix_gives_the_upsampled_convolution():
         np.testing.assert_allclose(y, _upsample_pad_conv(x, w, None, mode), atol=1e-12)
 
 
-def _chain_model(path, *, mode="reflect", bias=True, scale=2.0, pads=1, stride=1, cin=3, cout=5) -> np.ndarray:
+def _chain_model(path, *, mode="reflect", bias=True, scale=2.0, pads=1, stride=1, dilation=1, cin=3, cout=5,
+                 opset=17, pad_axes=None, init_inputs=False) -> np.ndarray:
     """A model: input x (N, cin, 6, 8) -> Relu -> Resize (nearest, asymmetric, floor) -> Pad (pads from a Constant node,
     as torch exports them) -> Conv 3x3 -> Sigmoid. Returns the weight."""
     rng = np.random.default_rng(1)
@@ -60,15 +61,23 @@ def _chain_model(path, *, mode="reflect", bias=True, scale=2.0, pads=1, stride=1
                          coordinate_transformation_mode="asymmetric", nearest_mode="floor"),
         helper.make_node("Constant", [], ["pads"], value=numpy_helper.from_array(
             np.array([0, 0, pads, pads, 0, 0, pads, pads], np.int64))),
-        helper.make_node("Pad", ["u", "pads"], ["p"], mode=mode),
+        helper.make_node("Pad", ["u", "pads", "", "axes"] if pad_axes is not None else ["u", "pads"], ["p"], mode=mode),
         helper.make_node("Conv", ["p", "w", "b"] if bias else ["p", "w"], ["c"], kernel_shape=[3, 3],
-                         strides=[stride, stride]),
+                         strides=[stride, stride], dilations=[dilation, dilation]),
         helper.make_node("Sigmoid", ["c"], ["y"]),
     ]
+    if pad_axes is not None:
+        nodes.insert(3, helper.make_node("Constant", [], ["axes"], value=numpy_helper.from_array(
+            np.array(pad_axes, np.int64))))
     inits = [numpy_helper.from_array(w, "w")] + ([numpy_helper.from_array(b, "b")] if bias else [])
-    g = helper.make_graph(nodes, "chain", [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", cin, 6, 8])],
+    inputs = [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", cin, 6, 8])]
+    if init_inputs:  # as old exporters wrote them: the scales an initialiser listed among the inputs too
+        nodes[1] = helper.make_node("Identity", ["scales_init"], ["scales"])
+        inits.append(numpy_helper.from_array(np.array([1, 1, scale, scale], np.float32), "scales_init"))
+        inputs.append(helper.make_tensor_value_info("scales_init", TensorProto.FLOAT, [4]))
+    g = helper.make_graph(nodes, "chain", inputs,
                           [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["N", cout, "H", "W"])], inits)
-    m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
+    m = helper.make_model(g, opset_imports=[helper.make_opsetid("", opset)])
     m.metadata_props.add(key="sketchmesh_role", value="generator")
     onnx.save(m, str(path))
     return w
@@ -93,7 +102,8 @@ def test_subpixel_model_keeps_the_outputs(tmp_path, mode, bias):
     np.testing.assert_allclose(got, want, atol=1e-6)
 
 
-@pytest.mark.parametrize("change", [{"scale": 3.0}, {"pads": 2}, {"stride": 2}])
+@pytest.mark.parametrize("change", [{"scale": 3.0}, {"pads": 2}, {"stride": 2}, {"dilation": 2},
+                                    {"opset": 18, "pad_axes": [2, 3, 0, 1]}])
 def test_a_chain_that_does_not_fit_is_left_alone(tmp_path, change):
     src = tmp_path / "a.onnx"
     _chain_model(src, **change)
@@ -159,3 +169,14 @@ def test_dynamic_int8_quantises_the_subpixel_kernels(tmp_path):
     err = np.abs(_run(tmp_path / "q.onnx", x) - _run(src, x)).max()
     err0 = np.abs(_run(tmp_path / "q0.onnx", x) - _run(src, x)).max()
     assert 0 < err < 2 * err0 + 1e-3  # int8 weights and activations: as near the float model as the original's
+
+
+def test_an_initialiser_listed_as_an_input_is_dropped_with_it(tmp_path):
+    """Old exporters list initialisers among the graph inputs: one the rewrite no longer reads leaves the inputs too,
+    or it would become a required input."""
+    src, dst = tmp_path / "a.onnx", tmp_path / "b.onnx"
+    _chain_model(src, init_inputs=True)
+    subpixel_model(src, dst)
+    assert [i.name for i in onnx.load(str(dst)).graph.input] == ["x"]
+    x = np.random.default_rng(5).standard_normal((1, 3, 6, 8)).astype(np.float32)
+    np.testing.assert_allclose(_run(dst, x), _run(src, x), atol=1e-6)

@@ -311,8 +311,11 @@ def export_models(
             data = _int8_stored(data)
             gq, gtol = "int8-weights", GENERATOR_INT8_TOLERANCE  # single edge pixels move most: a
             # sanity bound, as for int8-all
-        data = subpixel_bytes(data, "generator", require=False)  # the resize decoder as sub-pixel convolutions
-        # (engine.graph: the same arithmetic without passes over the large images; checked against the graph before)
+        try:  # the resize decoder as sub-pixel convolutions (engine.graph: the same arithmetic without passes over the
+            # large images; checked against the graph before); a graph it cannot rewrite is exported as it is
+            data = subpixel_bytes(data, "generator", require=False)
+        except ModelError as exc:
+            warnings.warn(f"the generator's upsampling kept as exported: {exc}", stacklevel=2)
         meta = base_meta("generator") | {contract.META_ROLE: contract.ROLE_GENERATOR,
                             contract.META_BASE_CHANNELS: str(g.base_channels),
                             contract.META_GENERATOR_ARCH: str(getattr(g, "arch", "pix2pix")),
