@@ -21,7 +21,8 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off;
 7. ``repair``      optional (``repair_folds``): where the final mesh crosses itself, smooth just there until it
    does not (:func:`engine.postprocess.repair_self_intersections`, what the app does to the mesh it
-   exports); one self-intersection check when nothing crosses, 0.0 when off.
+   exports); one self-intersection check when nothing crosses, none when the refinement has just counted none on
+   the same mesh (:attr:`engine.refine.RefineResult.crossings`), 0.0 when off.
 
 Sessions are created lazily, once, on first use (or :meth:`SketchEngine.load`). A small LRU
 cache keyed on a hash of the preprocessed raster and the mirror and repair settings skips stages 2-5
@@ -470,13 +471,13 @@ class SketchEngine:
             mesh = result.mesh
             warnings = (result.warning,) if result.warning else ()
         if repair:
-            from engine.postprocess import repair_self_intersections
+            from engine.postprocess import repair_folds
 
             with self._cache_lock:
                 fixed = entry.repaired.get(steps)
             if fixed is None:
                 t1 = time.perf_counter()
-                fixed = repair_self_intersections(mesh)
+                fixed = repair_folds(mesh, result.crossings if steps else None)  # none counted: nothing to check
                 timings["repair"] = (time.perf_counter() - t1) * 1e3
                 with self._cache_lock:
                     entry.repaired[steps] = fixed

@@ -404,6 +404,16 @@ class RepairResult:
     moved: int
 
 
+def repair_folds(mesh: Mesh, crossings: int | None = None) -> RepairResult:
+    """The fold repair the engine runs on the mesh it returns (:func:`repair_self_intersections` with its defaults),
+    skipped when ``crossings`` is a count of ``mesh``'s crossing face pairs just made and is 0 (the refinement counts
+    them on the mesh it returns, :attr:`engine.refine.RefineResult.crossings`): the same result, one check fewer."""
+    if crossings == 0:
+        _check_mesh(mesh)
+        return RepairResult(mesh, 0, 0, 0, 0)
+    return repair_self_intersections(mesh)
+
+
 def repair_self_intersections(mesh: Mesh, rounds: int = REPAIR_ROUNDS, steps: int = REPAIR_STEPS,
                               weight: float = REPAIR_WEIGHT) -> RepairResult:
     """Remove self-intersections by smoothing only where the surface crosses itself.

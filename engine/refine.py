@@ -167,6 +167,9 @@ class RefineResult:
         note: why refinement stopped before ``steps`` or stepped back to an earlier step (the
             result is still refined), else None.
         camera: the sketch camera the IoUs were measured in (None when refinement did not start).
+        crossings: crossing face pairs of ``mesh`` where refinement counted them
+            (:func:`engine.postprocess.self_intersections`), else None: a fold repair of a mesh known to have none
+            has nothing to do.
     """
 
     mesh: Mesh
@@ -176,6 +179,7 @@ class RefineResult:
     warning: str | None = None
     note: str | None = None
     camera: Camera | None = None
+    crossings: int | None = None
 
 
 # --------------------------------------------------------------------------- camera and target
@@ -746,6 +750,7 @@ def refine_mesh(
         if not np.all(np.isfinite(v)):
             continue
         refined = mesh.with_vertices(v.astype(np.float32))
+        n = None
         if check_intersections:
             from engine.postprocess import self_intersections
 
@@ -755,7 +760,7 @@ def refine_mesh(
                 if n > allowed:
                     note = "stepped back: a later step made the surface cross itself"
                     continue
-        return RefineResult(refined, done, iou0, iou, None, note, cam)
+        return RefineResult(refined, done, iou0, iou, None, note, cam, n)
     return skip("every refined step made the surface cross itself or was not finite", iou0)
 
 

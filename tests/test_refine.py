@@ -122,6 +122,8 @@ def test_sphere_refined_towards_an_ellipse_raises_iou_and_keeps_depth_and_topolo
     np.testing.assert_allclose(d1, d0, atol=1e-5)  # vertices moved along the image plane only, depth kept
     stats = mesh_stats(res.mesh)
     assert stats["watertight"] and stats["winding_consistent"] and stats["self_intersections"] == 0
+    assert res.crossings == 0  # counted on the returned mesh: what the fold repair then trusts
+    assert refine_mesh(sphere, target, 3, camera=cam, check_intersections=False).crossings is None
     assert np.array_equal(res.mesh.faces, sphere.faces)
     assert refine_mesh(sphere, target, 0, camera=cam).mesh is sphere
 

@@ -154,3 +154,27 @@ def test_cli_infer_repair_folds(tmp_path, folded_models, sketch):
         assert rec["repair_folds"] is bool(extra) and "repair" in rec["timings_ms"]
         counts[bool(extra)] = rec["self_intersections"]
     assert counts[False] > 20 and counts[True] == 0
+
+
+@pytest.mark.parametrize("crossings,checked", [(0, False), (None, True), (3, True)])
+def test_the_repair_trusts_a_count_the_refinement_just_made(folded_models, sketch, monkeypatch, crossings, checked):
+    """A refined mesh the refinement has counted free of crossings is not checked again by the fold repair (one check
+    less on the app's default path); an uncounted one, or one with crossings, is repaired as before."""
+    import engine.pipeline as pipeline
+    import engine.postprocess as pp
+    from engine.refine import RefineResult
+
+    calls = []
+    original = pp.repair_self_intersections
+    monkeypatch.setattr(pp, "repair_self_intersections", lambda mesh: calls.append(mesh) or original(mesh))
+    monkeypatch.setattr(pipeline, "refine_prediction",
+                        lambda mesh, *a, **k: RefineResult(mesh, 1, 0.5, 0.6, crossings=crossings))
+    pred = SketchEngine(folded_models, threads=1, repair_folds=True).predict(sketch, refine=1)
+    assert bool(calls) is checked
+    plain = SketchEngine(folded_models, threads=1).predict(sketch).mesh
+    if checked:  # repaired as before: the folded prediction untangled
+        assert self_intersections(pred.mesh) == 0
+        np.testing.assert_array_equal(pred.mesh.vertices, original(plain).mesh.vertices)
+    else:  # trusted: the mesh as refinement returned it
+        np.testing.assert_array_equal(pred.mesh.vertices, plain.vertices)
+        assert pred.timings_ms["repair"] < 1.0

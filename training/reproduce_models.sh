@@ -3224,6 +3224,20 @@ for case in ("clean", "side", "strong"):
           f"{max(diffs):.2g}), {routes} routed differently")
 PY
       ;;
+    latency-app-v48)  # the app's default path timed (bench refine, 156 clean and strong test sketches, mirror averaged,
+      # 0 and 3 refinement steps, folds repaired; run it alone) for BUNDLE48: first with the engine of commit BEFORE48
+      # [a6f9420] (its engine, training and sketchmesh packages from git, first on PYTHONPATH), which checked every
+      # refined mesh again for the fold repair, into OUT48/latency_app_before; then with this one into OUT48/latency_app
+      [ -f "$BUNDLE48/router.onnx" ] || [ "$BUNDLE48" != "$OUT48/models_fast" ] || step fast-v48
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      local before="$OUT48/code_before"
+      rm -rf "$before"; mkdir -p "$before"
+      git archive "${BEFORE48:-a6f9420}" engine training sketchmesh | tar -x -C "$before"
+      PYTHONPATH="$before" python3 -P -m sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE48" \
+        --max-samples "$SAMPLES2" --mirror-average --steps 0 3 --repair-folds --no-intersections --threads 2 --quiet \
+        --out "$OUT48/latency_app_before"
+      sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE48" --max-samples "$SAMPLES2" --mirror-average \
+        --steps 0 3 --repair-folds --no-intersections --threads 2 --quiet --out "$OUT48/latency_app" ;;
     fast-route-v48)  # models_fast measured: the three cases (paired against the twenty-fifth bundle's evals), latency, the
       # error-against-run-time table and the docs (about 45 min on 2 cores)
       for s2 in fast-v48 eval-fast-clean-v48 eval-fast-side-v48 eval-fast-strong-v48 latency-fast-v48 \
