@@ -295,11 +295,17 @@ def candidate_pairs(mesh: Mesh) -> np.ndarray:
         (P, 2) int64 face index pairs, i < j, unique, sorted.
     """
     _check_mesh(mesh)
-    F = mesh.num_faces
-    if F < 2:
+    if mesh.num_faces < 2:
         return np.zeros((0, 2), np.int64)
     tri = mesh.vertices.astype(np.float64)[mesh.faces]
-    lo, hi = tri.min(axis=1), tri.max(axis=1)  # (F, 3)
+    return _grid_pairs(tri.min(axis=1), tri.max(axis=1), mesh.faces)
+
+
+def _grid_pairs(lo: np.ndarray, hi: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """:func:`candidate_pairs` of the faces (F, 3) with boxes ``lo``, ``hi`` (F, 3): index pairs into these rows."""
+    F = len(faces)
+    if F < 2:
+        return np.zeros((0, 2), np.int64)
     origin = lo.min(axis=0)
     span = float(np.max(hi.max(axis=0) - origin))
     cell = max(float(np.median(np.max(hi - lo, axis=1))), span * 1e-6, 1e-300)
@@ -334,7 +340,7 @@ def candidate_pairs(mesh: Mesh) -> np.ndarray:
         ref += np.maximum(c0_a[i], c0_a[j]) * stride
     ok &= cell_of_pair == ref
     i, j = i[ok], j[ok]
-    fi, fj = mesh.faces[i], mesh.faces[j]
+    fi, fj = faces[i], faces[j]
     share = np.any(fi[:, :, None] == fj[:, None, :], axis=(1, 2))
     i, j = i[~share], j[~share]
     key = np.sort(np.minimum(i, j) * F + np.maximum(i, j))  # 1-D keys sort far faster than rows
@@ -352,10 +358,34 @@ def candidate_pairs_bruteforce(mesh: Mesh) -> np.ndarray:
     return np.stack([i[~share], j[~share]], axis=1).astype(np.int64)
 
 
-def intersecting_pairs(mesh: Mesh) -> np.ndarray:
-    """(P, 2) int64 pairs of faces (sharing no vertex) that cross each other; see :func:`self_intersections`."""
+def _candidate_pairs_of(mesh: Mesh, faces: np.ndarray) -> np.ndarray:
+    """:func:`candidate_pairs` restricted to the pairs with at least one face among ``faces`` (int indices): the grid
+    of :func:`candidate_pairs` over only the faces whose boxes overlap the box around those faces (no other face can
+    meet one of them), so a check after a local change costs what the change's neighbourhood holds.
+
+    Returns:
+        (P, 2) int64 face index pairs, i < j, unique, sorted.
+    """
+    faces = np.unique(np.asarray(faces, np.int64))
+    if mesh.num_faces < 2 or len(faces) == 0:
+        return np.zeros((0, 2), np.int64)
+    tri = mesh.vertices.astype(np.float64)[mesh.faces]
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    box_lo, box_hi = lo[faces].min(axis=0), hi[faces].max(axis=0)
+    near = np.flatnonzero(np.all((lo <= box_hi) & (hi >= box_lo), axis=1))  # the listed faces among them
+    pairs = near[_grid_pairs(lo[near], hi[near], mesh.faces[near])]  # near is sorted: pairs stay i < j, sorted
+    listed = np.zeros(mesh.num_faces, bool)
+    listed[faces] = True
+    return pairs[listed[pairs].any(axis=1)]
+
+
+def intersecting_pairs(mesh: Mesh, faces: np.ndarray | None = None) -> np.ndarray:
+    """(P, 2) int64 pairs of faces (sharing no vertex) that cross each other; see :func:`self_intersections`.
+
+    ``faces`` (int indices) limits the check to the pairs with at least one of those faces (the ones that moved:
+    two faces that did not move cross or not as before)."""
     _check_mesh(mesh)
-    pairs = candidate_pairs(mesh)
+    pairs = candidate_pairs(mesh) if faces is None else _candidate_pairs_of(mesh, faces)
     if len(pairs) == 0:
         return pairs
     v = mesh.vertices.astype(np.float64)
@@ -469,7 +499,10 @@ def repair_self_intersections(mesh: Mesh, rounds: int = REPAIR_ROUNDS, steps: in
         for _ in range(steps):
             v[idx] += float(weight) * ((sub @ v) / deg[idx, None] - v[idx])
         trial = mesh.with_vertices(v.astype(out_dtype))
-        pairs = intersecting_pairs(trial)
+        # every crossing face lies in the region, so a pair of faces outside it did not cross and still does not:
+        # only pairs with a face that moved need checking again (work follows the fold, not the mesh)
+        moved = region & (deg > 0)
+        pairs = intersecting_pairs(trial, np.flatnonzero(moved[f].any(axis=1)))
         if len(pairs) < best[0]:
             best = (len(pairs), trial)
         if len(pairs) == 0:

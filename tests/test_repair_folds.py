@@ -178,3 +178,39 @@ def test_the_repair_trusts_a_count_the_refinement_just_made(folded_models, sketc
     else:  # trusted: the mesh as refinement returned it
         np.testing.assert_array_equal(pred.mesh.vertices, plain.vertices)
         assert pred.timings_ms["repair"] < 1.0
+
+
+def test_the_check_of_the_faces_that_moved_finds_what_the_full_check_finds():
+    """intersecting_pairs(mesh, faces): the pairs with a listed face, exactly the full check's (and the broad phase's
+    brute force's) restricted to them, on a folded sphere and random face sets."""
+    from engine.postprocess import candidate_pairs_bruteforce
+
+    mesh, _ = _folded_sphere()
+    rng = np.random.default_rng(0)
+    full = intersecting_pairs(mesh)
+    every = candidate_pairs_bruteforce(mesh)
+    assert len(full) > 20
+    for k in (1, 7, 100, mesh.num_faces):
+        faces = rng.choice(mesh.num_faces, k, replace=False)
+        want = full[np.isin(full, faces).any(axis=1)]
+        np.testing.assert_array_equal(intersecting_pairs(mesh, faces), want)
+        from engine.postprocess import _candidate_pairs_of
+
+        np.testing.assert_array_equal(_candidate_pairs_of(mesh, faces), every[np.isin(every, faces).any(axis=1)])
+    assert len(intersecting_pairs(mesh, np.zeros(0, np.int64))) == 0
+
+
+def test_the_repair_checking_only_what_moved_matches_checking_everything(monkeypatch):
+    """Each repair round checks only pairs with a face that moved (two faces that stayed did not cross, and still do
+    not): the same rounds and the same mesh as checking the whole mesh every round."""
+    import engine.postprocess as pp
+
+    mesh, _ = _folded_sphere()
+    gentle = {"steps": 1, "weight": 0.1}  # small steps: several rounds, each region smaller than the last
+    fast = repair_self_intersections(mesh, **gentle)
+    monkeypatch.setattr(pp, "_candidate_pairs_of", lambda m, faces: (
+        lambda c: c[np.isin(c, np.asarray(faces)).any(axis=1)])(pp.candidate_pairs(m)))
+    slow = repair_self_intersections(mesh, **gentle)
+    assert fast.rounds > 2 and (fast.before, fast.after, fast.rounds, fast.moved) == (
+        slow.before, slow.after, slow.rounds, slow.moved)
+    np.testing.assert_array_equal(fast.mesh.vertices, slow.mesh.vertices)
