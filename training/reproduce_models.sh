@@ -3239,9 +3239,10 @@ PY
       sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE48" --max-samples "$SAMPLES2" --mirror-average \
         --steps 0 3 --repair-folds --no-intersections --threads 2 --quiet --out "$OUT48/latency_app" ;;
     fast-route-v48)  # models_fast measured: the three cases (paired against the twenty-fifth bundle's evals), latency, the
-      # error-against-run-time table and the docs (about 45 min on 2 cores)
+      # error-against-run-time table, the docs and the export path before and after the repair's shortcuts (about 55 min
+      # on 2 cores)
       for s2 in fast-v48 eval-fast-clean-v48 eval-fast-side-v48 eval-fast-strong-v48 latency-fast-v48 \
-          profile-generator-v48 versus-fast-v48 tradeoff-bundle-v48 docs-v48; do
+          profile-generator-v48 versus-fast-v48 tradeoff-bundle-v48 docs-v48 latency-app-v48; do
         step "$s2"
       done ;;
     ship-fast-v48)  # models_fast's generator becomes the bundled one (the other files checked byte-equal)
