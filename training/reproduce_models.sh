@@ -654,6 +654,21 @@ bundle_docs() {  # the README's gallery and error-against-run-time plot, of the 
   cp "$3/tradeoff.png" docs/tradeoff.png
 }
 
+bundle_round() {  # a round's bundle measured: $1 latency, tradeoff or docs, of the folder $2 (made by step $4 first when
+  # it is the round's own folder $3 and missing), into the round's output folder $5 (latency_bundle, tradeoff_bundle,
+  # gallery_bundle*); $6 the round (v47) whose tradeoff-bundle step docs needs
+  [ -f "$2/router.onnx" ] || [ "$2" != "$3" ] || step "$4"
+  case $1 in
+    latency|tradeoff) [ -f "$DATA36A/manifest.json" ] || step data-test-v47 ;;
+    docs) [ -f "$5/tradeoff_bundle/tradeoff.png" ] || step "tradeoff-bundle-$6" ;;
+  esac
+  case $1 in
+    latency) bundle_latency "$2" "$5/latency_bundle" ;;
+    tradeoff) bundle_tradeoff "$2" "$5/tradeoff_bundle" ;;
+    docs) bundle_docs "$2" "$5/gallery_bundle" "$5/tradeoff_bundle" ;;
+  esac
+}
+
 route_gallery() {  # the gallery of a model folder $1 (one test shape a category, from 30 degrees and from the side, mirror
   # averaged): $2.png and $2_side.png
   sketchmesh gallery --data "$DATA36A" --models "$1" --mirror-average --threads 2 -o "$2.png"
@@ -3104,17 +3119,9 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # (check-third-v47), and where models_compact10's router sent every test drawing of each case
       choice_versus "$OUT47/check_third/eval_models_train.json"
       case_routes "$ROUTES3" "$OUT47/compact10" ;;
-    latency-bundle-v47)  # the app's path timed for BUNDLE47 (bundle_latency; run it alone) into OUT47/latency_bundle
-      [ -f "$BUNDLE47/router.onnx" ] || [ "$BUNDLE47" != "$OUT47/models_compact10" ] || step compact10-v47
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      bundle_latency "$BUNDLE47" "$OUT47/latency_bundle" ;;
-    tradeoff-bundle-v47)  # error against run time for BUNDLE47 (bundle_tradeoff; run it alone) into OUT47/tradeoff_bundle
-      [ -f "$BUNDLE47/router.onnx" ] || [ "$BUNDLE47" != "$OUT47/models_compact10" ] || step compact10-v47
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      bundle_tradeoff "$BUNDLE47" "$OUT47/tradeoff_bundle" ;;
-    docs-v47)  # the README's gallery and error-against-run-time plot, of BUNDLE47 (bundle_docs): OUT47/gallery_bundle*
-      [ -f "$OUT47/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v47
-      bundle_docs "$BUNDLE47" "$OUT47/gallery_bundle" "$OUT47/tradeoff_bundle" ;;
+    latency-bundle-v47|tradeoff-bundle-v47|docs-v47)  # BUNDLE47 timed in the app's path (bundle_latency), its error against run
+      # time (bundle_tradeoff; run these two alone) and the README's gallery and plot (bundle_docs), into OUT47
+      bundle_round "${1%%-*}" "$BUNDLE47" "$OUT47/models_compact10" compact10-v47 "$OUT47" v47 ;;
     ship-compact10-v47)  # models_compact10's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
       ship_files "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
@@ -3273,17 +3280,9 @@ PY
       # (check-third-v48), and where models_compact11's router sent every test drawing of each case
       choice_versus "$OUT48/check_third/eval_models_train.json"
       case_routes "$ROUTES3" "$OUT48/compact11" ;;
-    latency-bundle-v48)  # the app's path timed for BUNDLE48 (bundle_latency; run it alone) into OUT48/latency_bundle
-      [ -f "$BUNDLE48/router.onnx" ] || [ "$BUNDLE48" != "$OUT48/models_fast" ] || step fast-v48
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      bundle_latency "$BUNDLE48" "$OUT48/latency_bundle" ;;
-    tradeoff-bundle-v48)  # error against run time for BUNDLE48 (bundle_tradeoff; run it alone) into OUT48/tradeoff_bundle
-      [ -f "$BUNDLE48/router.onnx" ] || [ "$BUNDLE48" != "$OUT48/models_fast" ] || step fast-v48
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      bundle_tradeoff "$BUNDLE48" "$OUT48/tradeoff_bundle" ;;
-    docs-v48)  # the README's gallery and error-against-run-time plot, of BUNDLE48 (bundle_docs): OUT48/gallery_bundle*
-      [ -f "$OUT48/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v48
-      bundle_docs "$BUNDLE48" "$OUT48/gallery_bundle" "$OUT48/tradeoff_bundle" ;;
+    latency-bundle-v48|tradeoff-bundle-v48|docs-v48)  # BUNDLE48 timed in the app's path (bundle_latency), its error against run
+      # time (bundle_tradeoff; run these two alone) and the README's gallery and plot (bundle_docs), into OUT48
+      bundle_round "${1%%-*}" "$BUNDLE48" "$OUT48/models_fast" fast-v48 "$OUT48" v48 ;;
     ship-compact11-v48)  # models_compact11's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
       ship_files "$OUT48/models_compact11" mesh_predictor_third.onnx ;;
