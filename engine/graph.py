@@ -252,15 +252,13 @@ def _topological(nodes: list, graph) -> list:
     """``nodes`` in an order where every input is made before it is read (ONNX requires it)."""
     ready = {i.name for i in graph.input} | {i.name for i in graph.initializer} | {""}
     producer = {o: n for n in nodes for o in n.output}
-    ready |= {"subpixel__phases", "subpixel__ones"}
     ready |= {i for n in nodes for i in n.input if i not in producer}  # initialisers added with the rewrite
-    order, placed, pending = [], set(), list(nodes)
+    order, pending = [], list(nodes)
     while pending:
         rest = []
         for n in pending:
             if all(i in ready for i in n.input):
                 order.append(n)
-                placed.add(id(n))
                 ready.update(n.output)
             else:
                 rest.append(n)
