@@ -330,18 +330,21 @@ def _grid_pairs(lo: np.ndarray, hi: np.ndarray, faces: np.ndarray) -> np.ndarray
     start_of = np.flatnonzero(np.r_[True, cell_sorted[1:] != cell_sorted[:-1]])
     group_start = np.repeat(start_of, np.diff(np.r_[start_of, len(cell_sorted)]))
     p, q = _pairs_within_groups(group_start, len(cell_sorted))
-    i, j = face_sorted[p], face_sorted[q]
-    cell_of_pair = cell_sorted[p]
+    # the reference cell (the max of the two low corners' cells, per axis) is the pair's cell when, on every axis, the
+    # cell is one of the two faces' low corner cell: a 3-bit flag per entry, so the duplicates go before any box test
+    low = ((ix == c0[face, 0]) * 1 | (iy == c0[face, 1]) * 2 | (iz == c0[face, 2]) * 4)[order]
+    keep = np.flatnonzero((low[p] | low[q]) == 7)
+    i, j = face_sorted[p[keep]], face_sorted[q[keep]]
     ok = np.ones(len(i), bool)
-    ref = np.zeros(len(i), np.int64)  # the reference cell: max of the low corners' cells, per axis
-    for a, stride in enumerate((dims[1] * dims[2], dims[2], 1)):  # per axis: (N,)-vector ops, no (N, 3) reductions
-        lo_a, hi_a, c0_a = lo[:, a], hi[:, a], c0[:, a]
+    for a in range(3):  # per axis: (N,)-vector ops, no (N, 3) reductions
+        lo_a, hi_a = lo[:, a], hi[:, a]
         ok &= (lo_a[i] <= hi_a[j]) & (lo_a[j] <= hi_a[i])
-        ref += np.maximum(c0_a[i], c0_a[j]) * stride
-    ok &= cell_of_pair == ref
     i, j = i[ok], j[ok]
     fi, fj = faces[i], faces[j]
-    share = np.any(fi[:, :, None] == fj[:, None, :], axis=(1, 2))
+    share = np.zeros(len(i), bool)
+    for a in range(3):  # nine (N,) comparisons: far faster than one (N, 3, 3) comparison reduced over two axes
+        for b in range(3):
+            share |= fi[:, a] == fj[:, b]
     i, j = i[~share], j[~share]
     key = np.sort(np.minimum(i, j) * F + np.maximum(i, j))  # 1-D keys sort far faster than rows
     return np.stack([key // F, key % F], axis=1).astype(np.int64)
