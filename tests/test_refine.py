@@ -25,10 +25,12 @@ from engine.refine import (
     fill_drawing,
     fit_camera,
     generator_silhouette,
+    is_closed,
     pixel_coords,
     refine_mesh,
     refine_prediction,
     render_silhouette,
+    render_silhouettes,
     silhouette_iou,
     sketch_camera,
     stroke_centre_region,
@@ -69,6 +71,53 @@ def test_rasterizer_matches_a_per_pixel_reference():
         ref |= (e[0] >= 0) & (e[1] >= 0) & (e[2] >= 0) | (e[0] <= 0) & (e[1] <= 0) & (e[2] <= 0)
     assert np.array_equal(fast, ref), f"{np.count_nonzero(fast != ref)} pixels differ"
     assert fast.any() and not fast.all()
+
+
+def _folded_sphere(seed: int) -> Mesh:
+    """A closed icosphere pushed about hard enough that its surface folds over and crosses itself on screen."""
+    m = icosphere(3, 0.5)
+    rng = np.random.default_rng(seed)
+    v = m.vertices * (1.0 + 0.6 * rng.standard_normal((m.num_vertices, 1)))
+    v[:, 0] += 0.3 * np.sin(7.0 * v[:, 1])
+    return m.with_vertices(v.astype(np.float32))
+
+
+def test_batched_poses_are_each_pose_rendered_alone_clipped_to_its_own_image():
+    """K poses in one pass give the K images of one pose at a time, also where a pose runs off the image (a face
+    below one image must not reach into the next one's rows)."""
+    m = _bumpy_sphere(2)
+    cam = sketch_camera(m)
+    px, _ = pixel_coords(m.vertices, cam, 40)
+    poses = np.stack([px, px * 1.6 - 12.0, px + [0.0, 25.0], px - [30.0, 0.0], px * 0.2])
+    many = render_silhouettes(poses, m.faces, 40)
+    assert many.shape == (5, 40, 40)
+    for k, pose in enumerate(poses):
+        assert np.array_equal(many[k], render_silhouette(pose, m.faces, 40)), f"pose {k} differs"
+    assert many[1, -1].any() and many[2, -1].any() and many[2, 0].sum() < many[0, 0].sum() + 1  # clipped poses
+
+
+def test_a_closed_surface_needs_only_one_winding_of_its_faces():
+    """For closed surfaces -- smooth, bumpy and folded over themselves -- the faces of either winding alone cover the
+    silhouette every face covers, so render_silhouettes(closed=True) gives the same pixels."""
+    for mesh in [icosphere(3, 0.5), _bumpy_sphere(3), _folded_sphere(4), _folded_sphere(5)]:
+        assert is_closed(mesh.faces)
+        px, _ = pixel_coords(mesh.vertices, sketch_camera(mesh), 64)
+        poses = np.stack([px, px * 0.7 + 5.0])
+        every = render_silhouettes(poses, mesh.faces, 64)
+        culled = render_silhouettes(poses, mesh.faces, 64, closed=True)
+        assert np.array_equal(every, culled), f"{np.count_nonzero(every != culled)} pixels differ"
+        area = np.sign([(b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) for a, b, c in px[mesh.faces]])
+        for side in (-1, 1):  # each winding alone covers the silhouette: which one is used does not matter
+            assert np.array_equal(render_silhouette(px, mesh.faces[area == side], 64), every[0])
+
+
+def test_is_closed_needs_every_edge_twice_once_each_way():
+    f = icosphere(2, 0.5).faces
+    assert is_closed(f) and is_closed(f[:, ::-1])  # either orientation
+    assert not is_closed(f[1:])  # a hole
+    assert not is_closed(np.concatenate([f[:1, ::-1], f[1:]]))  # one face turned round
+    assert not is_closed(np.concatenate([f, f[:1]]))  # a face twice
+    assert not is_closed(np.zeros((0, 3), np.int64)) and not is_closed(np.array([[0, 0, 1]]))
 
 
 def test_fill_drawing_fills_closed_outlines_and_handles_the_frame():
