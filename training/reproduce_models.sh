@@ -375,6 +375,8 @@ OUT48=${OUT48:-out/v48}
 DATA48N=${DATA48N:-data/third3350v4}
 DATA48=${DATA48:-data/third5800v4}
 BUNDLE48=${BUNDLE48:-$OUT48/models_fast}  # the folder latency-, tradeoff- and docs-v48 measure
+OUT49=${OUT49:-out/v49}
+BUNDLE49=${BUNDLE49:-assets/models}  # the folder latency-app-v49 times
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3252,6 +3254,37 @@ PY
           profile-generator-v48 versus-fast-v48 tradeoff-bundle-v48 docs-v48 latency-app-v48; do
         step "$s2"
       done ;;
+    latency-app-v49)  # the refinement's speed-ups (batched, one-winding rasterization; the broad phase's flags) timed in the
+      # app's path (bench refine, 156 clean and strong test sketches, mirror averaged, 0 and 3 refinement steps; run it
+      # alone) on BUNDLE49: the engine of commit BEFORE49 [772e40f] (its engine package from git, first on PYTHONPATH;
+      # this bench, which times the camera fit inside the refinement) then this one, the live path (no fold repair)
+      # into OUT49/latency_live_before and OUT49/latency_live, then the export path (folds repaired) into
+      # OUT49/latency_export_before and OUT49/latency_export
+      local before="$OUT49/engine_before"
+      rm -rf "$before"; mkdir -p "$before"
+      git archive "${BEFORE49:-772e40f}" engine | tar -x -C "$before"
+      local path extra
+      for path in live export; do
+        extra=(); [ "$path" = export ] && extra=(--repair-folds)
+        PYTHONPATH="$before" python3 -P -m sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" \
+          --max-samples "$SAMPLES2" --mirror-average --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet \
+          --out "$OUT49/latency_${path}_before"
+        sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
+          --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet --out "$OUT49/latency_$path"
+      done ;;
+    session-v49)  # the app under the pen with the bundled models, in turn with the app and engine of commit BEFORE49
+      # [772e40f] (the outline refinement on when the app starts; from git, first on PYTHONPATH) and with today's
+      # defaults (the refinement off since 2026-11-30; mirror averaging and the export's fold repair on): three scripted
+      # sessions each in the real window, reports OUT49/session/before_k.json and after_k.json, then their table (run
+      # it alone: it times)
+      local before="$OUT49/app_before" i
+      rm -rf "$before"; mkdir -p "$before" "$OUT49/session"
+      git archive "${BEFORE49:-772e40f}" app engine | tar -x -C "$before"
+      for i in 1 2 3; do
+        PYTHONPATH="$before" play_session "$OUT49/session/before_$i.json"
+        play_session "$OUT49/session/after_$i.json"
+      done
+      session_table "$OUT49/session" ;;
     ship-fast-v48)  # models_fast's generator becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
       ship_files "$OUT48/models_fast" generator.onnx ;;
