@@ -3272,6 +3272,10 @@ PY
         sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
           --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet --out "$OUT49/latency_$path"
       done ;;
+    tradeoff-bundle-v49|docs-v49)  # BUNDLE49 [assets/models: the twenty-seventh bundle once ship-compact11-v48 has run]:
+      # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
+      # OUT49
+      bundle_round "${1%%-*}" "$BUNDLE49" "$OUT48/models_compact11" compact11-v48 "$OUT49" v49 ;;
     session-v49)  # the app under the pen with the bundled models, in turn with the app and engine of commit BEFORE49
       # [772e40f] (the outline refinement on when the app starts; from git, first on PYTHONPATH) and with today's
       # defaults (the refinement off since 2026-11-30; mirror averaging and the export's fold repair on): three scripted
