@@ -376,6 +376,9 @@ DATA48N=${DATA48N:-data/third3350v4}
 DATA48=${DATA48:-data/third5800v4}
 BUNDLE48=${BUNDLE48:-$OUT48/models_fast}  # the folder latency-, tradeoff- and docs-v48 measure
 OUT49=${OUT49:-out/v49}
+RUNS49=${RUNS49:-runs/v49}
+DATA49N=${DATA49N:-data/third3950v4}
+DATA49=${DATA49:-data/third7250v4}
 BUNDLE49=${BUNDLE49:-assets/models}  # the folder latency-app-v49 times
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
@@ -3272,10 +3275,37 @@ PY
         sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
           --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet --out "$OUT49/latency_$path"
       done ;;
+    data-v49)  # DATA49N: rifle, watercraft and sofa shapes 3950-4549 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA48 into DATA49, and the fifth generator's images (DATA48's rows copied, --reuse); resumes
+      [ -f "$DATA48/.cache/generated/normals16_mirror/info.json" ] || step data-v48
+      CATS="${THIRD[*]}" PER_CAT=600 legs_data 3950 "$DATA49N" "$DATA49" "$DATA48" reuse ;;
+    predictor-v49-third5)  # predictor-v48-third4's run (the bundled third specialist's) trained on a fifth time along a
+      # new cosine (the same rate and recipe) on DATA49, into RUNS49/third5; V36_ITERS [3000], V36_MINUTES [65] at most;
+      # resumes
+      [ -f "$RUNS48/third4/config.json" ] || step predictor-v48-third4
+      [ -f "$DATA49/.cache/generated/normals16_mirror/info.json" ] || step data-v49
+      legs_round "$RUNS48/third4" "$DATA49" "$RUNS49/third5" ;;
+    check-third-v49)  # predictor-v49-third5's run exported as the specialists are (OUT49/models_third5) and scored beside
+      # the twenty-first and the fourth round (float16, as check-third-v48 exported it) on the choice set DATA44C, into
+      # OUT49/check_third; then its paired gains
+      [ -f "$RUNS49/third5/config.json" ] || step predictor-v49-third5
+      [ -f "$OUT48/models_third4/mesh_predictor.onnx" ] || step check-third-v48
+      choice_data "$DATA44C" "${THIRD[@]}"
+      round_check "$OUT49" "$RUNS49/third5" third5 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT48/models_third4" ;;
+    third5-v49)  # the third specialist's fifth round (data, training, the choice set; about 2 hours on 2 cores)
+      for s2 in data-v49 predictor-v49-third5 check-third-v49; do step "$s2"; done ;;
     tradeoff-bundle-v49|docs-v49)  # BUNDLE49 [assets/models: the twenty-seventh bundle once ship-compact11-v48 has run]:
       # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
       # OUT49
       bundle_round "${1%%-*}" "$BUNDLE49" "$OUT48/models_compact11" compact11-v48 "$OUT49" v49 ;;
+    refine-v49)  # the outline refinement on BUNDLE49 against its step count N (bench refine: 0 1 2 3 4 6 steps, 156 clean and
+      # 156 strong test sketches, mirror averaged, the camera fit inside the refinement's time; run it alone: it times),
+      # into OUT49/refine, its plot copied to docs/refine.png
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
+        --threads 2 --out "$OUT49/refine"
+      cp "$OUT49/refine/refine.png" docs/refine.png ;;
     session-v49)  # the app under the pen with the bundled models, in turn with the app and engine of commit BEFORE49
       # [772e40f] (the outline refinement on when the app starts; from git, first on PYTHONPATH) and with today's
       # defaults (the refinement off since 2026-11-30; mirror averaging and the export's fold repair on): three scripted
