@@ -211,6 +211,7 @@ class MainWindow(QMainWindow):
 
     Signals:
         meshUpdated(int): a fresh prediction was shown (request id).
+        previewShown(int): the unrefined mesh of a drawing being refined was shown (request id; meshUpdated follows).
         inferenceFailed(int, str): the newest request failed (request id, message).
         exportFinished(str, str): a mesh export ended (path, error message or "").
         sketchOpened(str, str): opening a file ended (path, error message or "").
@@ -218,6 +219,7 @@ class MainWindow(QMainWindow):
     """
 
     meshUpdated = Signal(int)
+    previewShown = Signal(int)
     inferenceFailed = Signal(int, str)
     exportFinished = Signal(str, str)
     sketchOpened = Signal(str, str)
@@ -288,6 +290,7 @@ class MainWindow(QMainWindow):
         # ---- inference
         self.controller = InferenceController(None, 100 if debounce_ms is None else debounce_ms, self, thumbnail_size=THUMBNAIL_SIZE)
         self.controller.predictionReady.connect(self._on_prediction)
+        self.controller.previewReady.connect(self._on_preview)
         self.controller.predictionFailed.connect(self._on_failure)
         self.controller.cleared.connect(self._on_cleared)
         self.controller.busyChanged.connect(self._on_busy)
@@ -606,8 +609,23 @@ class MainWindow(QMainWindow):
             self.lag_label.setText(f"UI lag {self.last_lag_ms:.0f} ms")
             self.lag_label.setToolTip("largest event-loop delay while the last inference ran")
 
+    def _on_preview(self, request_id: int, prediction: object) -> None:
+        """The networks' mesh of a drawing the engine is refining: shown at once, replaced by the refined one (which
+        alone becomes :attr:`last_prediction`, the mesh exports take) when it comes."""
+        self._show_mesh(request_id, prediction)
+        self.show_message("Refining to the outline...")
+        self.previewShown.emit(request_id)
+
     def _on_prediction(self, request_id: int, prediction: object) -> None:
         self._last_prediction = prediction
+        self._show_mesh(request_id, prediction)
+        self.timing_label.setText(format_timings(dict(prediction.timings_ms), bool(getattr(prediction, "cached", False))))
+        self.show_message(prediction_message(prediction))
+        self._update_actions()
+        self.meshUpdated.emit(request_id)
+
+    def _show_mesh(self, request_id: int, prediction: object) -> None:
+        """The viewport, the model-input and normal-image panels for ``prediction``."""
         self.viewport.set_mesh(prediction.mesh)
         thumbs = self.controller.take_thumbnails(request_id)
         sketch = thumbs.sketch if thumbs is not None else getattr(prediction, "sketch", None)
@@ -616,10 +634,6 @@ class MainWindow(QMainWindow):
         normals = thumbs.normals if thumbs is not None else getattr(prediction, "normals", None)
         if normals is not None:
             self.normal_panel.set_image(normals if isinstance(normals, QImage) else _rgb_to_qimage(np.asarray(normals)))
-        self.timing_label.setText(format_timings(dict(prediction.timings_ms), bool(getattr(prediction, "cached", False))))
-        self.show_message(prediction_message(prediction))
-        self._update_actions()
-        self.meshUpdated.emit(request_id)
 
     def _on_failure(self, request_id: int, message: str) -> None:
         self.show_message(f"Inference failed: {message}")

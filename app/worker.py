@@ -12,6 +12,11 @@ composite (:class:`app.canvas.CanvasComposite`) is rendered and framed on the wo
 worker makes the two thumbnails the window shows (:class:`Thumbnails`, fetched with
 :meth:`InferenceController.take_thumbnails`).
 
+With the engine's outline refinement on (``refine_steps`` > 0), the worker first answers with the networks' own mesh,
+``previewReady(request_id, ...)``, then refines it (the engine's cache holds the networks' result, so only the
+refinement runs again) and answers with ``resultReady``: the artist sees a mesh as soon as the networks are done, and
+a drawing superseded meanwhile is not refined at all.
+
 A new model folder is loaded the same way: :meth:`InferenceController.load_engine` hands a
 candidate engine to the worker, which creates and validates its ONNX Runtime sessions there
 (queued behind the requests already sent, never skipped as stale); the engine in use keeps
@@ -32,7 +37,7 @@ import time
 import weakref
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shiboken6
@@ -217,6 +222,7 @@ class InferenceWorker(QObject):
 
     Signals:
         resultReady(int, object): (request_id, (engine.pipeline.Prediction, Thumbnails | None)).
+        previewReady(int, object): the same for the unrefined mesh of a request the engine then refines (module doc).
         errorOccurred(int, str): (request_id, one-line message).
         skipped(int): a request superseded before it started.
         loaded(int): a preload request (:data:`PRELOAD`) finished without error.
@@ -225,6 +231,7 @@ class InferenceWorker(QObject):
     """
 
     resultReady = Signal(int, object)
+    previewReady = Signal(int, object)
     errorOccurred = Signal(int, str)
     skipped = Signal(int)
     loaded = Signal(int)
@@ -282,7 +289,10 @@ class InferenceWorker(QObject):
                 else:
                     ink = sketch.ink
                 sketch = preprocess_raster(ink)
-            prediction = engine.predict(sketch, want_normals=True)
+            prediction = self._predict(request_id, engine, sketch)
+            if prediction is None:  # superseded after its preview: not refined
+                self.skipped.emit(request_id)
+                return
             thumbs = None if self.thumbnail_size is None else make_thumbnails(prediction, self.thumbnail_size)
         except SketchmeshError as exc:
             self.errorOccurred.emit(request_id, str(exc))
@@ -293,6 +303,23 @@ class InferenceWorker(QObject):
         else:
             self.resultReady.emit(request_id, (prediction, thumbs))
 
+
+    def _predict(self, request_id: int, engine: object, sketch: object) -> object | None:
+        """``engine.predict``; with the refinement on, the unrefined mesh first as a preview (module doc). None when the
+        request was superseded after its preview."""
+        steps = getattr(engine, "refine_steps", 0)
+        if not steps:
+            return engine.predict(sketch, want_normals=True)
+        first = engine.predict(sketch, want_normals=True, refine=0)
+        thumbs = None if self.thumbnail_size is None else make_thumbnails(first, self.thumbnail_size)
+        self.previewReady.emit(request_id, (first, thumbs))
+        with self._lock:
+            if self._stopping or request_id < self._latest:
+                return None
+        refined = engine.predict(sketch, want_normals=True, refine=steps)  # the networks' result from the cache
+        # the networks' stages as they ran for the preview, the refinement's and the repair's from this call
+        timings = {**first.timings_ms, **{k: v for k, v in refined.timings_ms.items() if k in ("refine", "repair")}}
+        return replace(refined, timings_ms=timings, cached=first.cached)
 
     @Slot(int, object)
     def load_engine(self, token: int, engine: object) -> None:
@@ -315,6 +342,7 @@ class InferenceController(QObject):
 
     Signals:
         predictionReady(int, object): the newest request's Prediction.
+        previewReady(int, object): the newest request's unrefined Prediction, while it is being refined.
         predictionFailed(int, str): the newest request's error message.
         cleared(): the sketch became empty (the viewport should show nothing).
         busyChanged(bool): whether a request or a model load is outstanding.
@@ -323,6 +351,7 @@ class InferenceController(QObject):
     """
 
     predictionReady = Signal(int, object)
+    previewReady = Signal(int, object)
     predictionFailed = Signal(int, str)
     cleared = Signal()
     busyChanged = Signal(bool)
@@ -367,6 +396,7 @@ class InferenceController(QObject):
         self._worker.moveToThread(self._thread)
         self._request.connect(self._worker.process, Qt.ConnectionType.QueuedConnection)
         self._worker.resultReady.connect(self._on_result, Qt.ConnectionType.QueuedConnection)
+        self._worker.previewReady.connect(self._on_preview, Qt.ConnectionType.QueuedConnection)
         self._worker.errorOccurred.connect(self._on_error, Qt.ConnectionType.QueuedConnection)
         self._worker.skipped.connect(self._on_skipped, Qt.ConnectionType.QueuedConnection)
         self._worker.loaded.connect(self._on_loaded, Qt.ConnectionType.QueuedConnection)
@@ -517,6 +547,14 @@ class InferenceController(QObject):
             self.predictionReady.emit(request_id, prediction)
         else:
             self.dropped_count += 1
+
+    @Slot(int, object)
+    def _on_preview(self, request_id: int, result: object) -> None:
+        prediction, thumbs = result
+        if request_id == self._latest_id and request_id in self._outstanding:  # the request itself is not finished
+            if thumbs is not None:
+                self._thumbs = {request_id: thumbs}
+            self.previewReady.emit(request_id, prediction)
 
     def take_thumbnails(self, request_id: int) -> Thumbnails | None:
         """The worker-made thumbnails of a result (once; None without ``thumbnail_size``)."""

@@ -118,3 +118,26 @@ def test_exports_repair_folds_unless_told_not_to(qtbot, tmp_path):
     finally:
         w.close()
         w.deleteLater()
+
+
+def test_with_the_refinement_on_the_window_shows_the_networks_mesh_then_the_refined_one(qtbot, window, models):
+    """Refinement on: the networks' mesh is shown as soon as it is ready, then the refined one replaces it and alone
+    becomes the last prediction (what exports take); each is the engine's own for the drawing."""
+    w = window
+    if not w.actions["refine"].isChecked():
+        w.actions["refine"].trigger()
+    shown = []
+    w.controller.previewReady.connect(lambda i, p: shown.append(("preview", i, p)))
+    w.controller.predictionReady.connect(lambda i, p: shown.append(("final", i, p)))
+    with qtbot.waitSignals([w.previewShown, w.meshUpdated], order="strict", timeout=WAIT_MS):
+        draw_stroke(w.canvas, line_points(60, 80, 300, 300))
+    (kind0, id0, preview), (kind1, id1, final) = shown[-2:]
+    assert (kind0, kind1) == ("preview", "final") and id0 == id1
+    assert w.last_prediction is final
+    raster = final.sketch
+    ref = SketchEngine(models, threads=1, cache_size=0, mirror_average=w.engine.mirror_average,
+                       repair_folds=w.engine.repair_folds)
+    np.testing.assert_allclose(preview.mesh.vertices, ref.predict(raster, refine=0).mesh.vertices, atol=1e-5)
+    np.testing.assert_allclose(final.mesh.vertices, ref.predict(raster, refine=DEFAULT_STEPS).mesh.vertices, atol=1e-5)
+    assert preview.timings_ms["refine"] == 0.0 and final.timings_ms["refine"] > 0.0
+    assert final.timings_ms["generator"] == preview.timings_ms["generator"] > 0.0  # not the cache hit's zeros

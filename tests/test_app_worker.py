@@ -27,11 +27,12 @@ from app.worker import (
     CanvasRaster,
     EventLoopLatencyProbe,
     InferenceController,
+    InferenceWorker,
     lower_thread_priority,
     nice_from_env,
 )
 from engine.errors import ModelError, SketchmeshError
-from engine.pipeline import SketchEngine
+from engine.pipeline import Prediction, SketchEngine
 from engine.preprocess import preprocess_raster
 
 SLOW_INFERENCE_S = 0.3
@@ -390,3 +391,54 @@ def test_a_bad_nice_value_is_a_clear_error_from_the_command_line(tmp_path):
         assert r.returncode != 0 and "Traceback" not in r.stderr, r.stderr
         assert len(lines) == 1 and f"{name} must be a whole number" in lines[0], r.stderr
         assert not (tmp_path / "r.json").exists()
+
+
+class _RefiningEngine(FakeEngine):
+    """A FakeEngine whose outline refinement is on: records each call's ``refine`` and, after the networks' call,
+    runs ``on_networks`` (a newer drawing arriving meanwhile); the refined call's refine stage takes 7 ms."""
+
+    refine_steps = 3
+
+    def __init__(self, on_networks=None) -> None:
+        super().__init__()
+        self.refines: list[object] = []
+        self.on_networks = on_networks
+
+    def predict(self, sketch, *, want_normals=False, refine=None):
+        self.refines.append(refine)
+        p = super().predict(sketch, want_normals=want_normals)
+        if refine == 0:
+            if self.on_networks is not None:
+                self.on_networks()
+            return p
+        return Prediction(p.mesh, p.normals, p.sketch, {**dict.fromkeys(p.timings_ms, 0.0), "refine": 7.0}, True)
+
+
+def _worker_answers(worker: InferenceWorker) -> dict[str, list]:
+    seen: dict[str, list] = {"preview": [], "result": [], "skipped": []}
+    worker.previewReady.connect(lambda i, r: seen["preview"].append((i, r[0])))
+    worker.resultReady.connect(lambda i, r: seen["result"].append((i, r[0])))
+    worker.skipped.connect(lambda i: seen["skipped"].append(i))
+    return seen
+
+
+def test_with_the_refinement_on_the_worker_answers_with_the_networks_mesh_first_then_the_refined_one(qapp):
+    worker = InferenceWorker()
+    seen = _worker_answers(worker)
+    engine = _RefiningEngine()
+    raster = np.zeros((256, 256), np.float32)
+    worker.process(1, engine, raster)
+    assert engine.refines == [0, 3]  # the networks' call, then the refining one (its networks from the cache)
+    assert [i for i, _ in seen["preview"]] == [1] and [i for i, _ in seen["result"]] == [1] and seen["skipped"] == []
+    final = seen["result"][0][1]
+    # the networks' stages as they ran for the preview, the refinement's time from the second call, not "cached"
+    assert final.timings_ms["generator"] == 1.0 and final.timings_ms["refine"] == 7.0 and final.cached is False
+
+
+def test_a_drawing_superseded_during_its_preview_is_not_refined(qapp):
+    worker = InferenceWorker()
+    seen = _worker_answers(worker)
+    engine = _RefiningEngine(on_networks=lambda: worker.note_latest(2))
+    worker.process(1, engine, np.zeros((256, 256), np.float32))
+    assert engine.refines == [0]  # no refinement of a drawing already replaced
+    assert [i for i, _ in seen["preview"]] == [1] and seen["result"] == [] and seen["skipped"] == [1]
