@@ -138,9 +138,10 @@ def read_sketch_source(path: Path) -> SketchState | np.ndarray:
 
 REFINE_BY_DEFAULT = False
 """Whether "Refine to outline" starts checked. Off since 2026-11-30: the refinement fits the mesh to the drawn outline
-(silhouette IoU against it 0.85 -> 0.89 on clean test sketches) but not to the true one (0.802 both ways), costs 3D
-accuracy (voxel IoU 0.617 -> 0.596 clean, 0.565 -> 0.541 strong) and takes the live update over the 60 ms budget on
-2 cores (README, "Refining the mesh to the outline"); an artist who wants the drawn outline turns it on (R)."""
+(silhouette IoU against it 0.857 -> 0.891 on clean test sketches) but not to the true one (0.809 both ways), costs 3D
+accuracy (voxel IoU 0.6208 -> 0.5989 clean, 0.5670 -> 0.5434 strong) and takes the live update over the 60 ms budget on
+2 cores (`reproduce_models.sh latency-app-v49`; README, "Refining the mesh to the outline"); an artist who wants the
+drawn outline turns it on (R)."""
 MIRROR_BY_DEFAULT = True
 """Whether "Mirror average" starts checked: each mesh averaged with the one predicted from the drawing flipped
 left to right (engine.pipeline), which raises voxel IoU from sketches for a second pass of both networks

@@ -261,11 +261,14 @@ class InferenceWorker(QObject):
         with self._lock:
             self._stopping = True
 
+    def _stale(self, request_id: int) -> bool:
+        """Whether ``request_id`` has been superseded (or the worker is stopping)."""
+        with self._lock:
+            return self._stopping or request_id < self._latest
+
     @Slot(int, object, object)
     def process(self, request_id: int, engine: object, sketch: SketchInput) -> None:
-        with self._lock:
-            stale = self._stopping or request_id < self._latest
-        if stale:
+        if self._stale(request_id):
             self.skipped.emit(request_id)
             return
         self.thread_ids.add(threading.get_ident())
@@ -289,11 +292,11 @@ class InferenceWorker(QObject):
                 else:
                     ink = sketch.ink
                 sketch = preprocess_raster(ink)
-            prediction = self._predict(request_id, engine, sketch)
-            if prediction is None:  # superseded after its preview: not refined
+            answer = self._predict(request_id, engine, sketch)
+            if answer is None:  # superseded after its preview: not refined
                 self.skipped.emit(request_id)
                 return
-            thumbs = None if self.thumbnail_size is None else make_thumbnails(prediction, self.thumbnail_size)
+            prediction, thumbs = answer
         except SketchmeshError as exc:
             self.errorOccurred.emit(request_id, str(exc))
         except MemoryError:
@@ -304,22 +307,22 @@ class InferenceWorker(QObject):
             self.resultReady.emit(request_id, (prediction, thumbs))
 
 
-    def _predict(self, request_id: int, engine: object, sketch: object) -> object | None:
-        """``engine.predict``; with the refinement on, the unrefined mesh first as a preview (module doc). None when the
-        request was superseded after its preview."""
+    def _predict(self, request_id: int, engine: object, sketch: object) -> tuple[object, Thumbnails | None] | None:
+        """(``engine.predict``'s Prediction, its thumbnails); with the refinement on, the unrefined mesh is sent first
+        as a preview (module doc). None when the request was superseded after its preview."""
         steps = getattr(engine, "refine_steps", 0)
-        if not steps:
-            return engine.predict(sketch, want_normals=True)
-        first = engine.predict(sketch, want_normals=True, refine=0)
+        first = engine.predict(sketch, want_normals=True, **({"refine": 0} if steps else {}))
         thumbs = None if self.thumbnail_size is None else make_thumbnails(first, self.thumbnail_size)
+        if not steps:
+            return first, thumbs
         self.previewReady.emit(request_id, (first, thumbs))
-        with self._lock:
-            if self._stopping or request_id < self._latest:
-                return None
+        if self._stale(request_id):
+            return None
         refined = engine.predict(sketch, want_normals=True, refine=steps)  # the networks' result from the cache
-        # the networks' stages as they ran for the preview, the refinement's and the repair's from this call
+        # the networks' stages as they ran for the preview, the refinement's and the repair's from this call; the
+        # thumbnails are the preview's (the refinement moves the mesh only, not the drawing or the normal image)
         timings = {**first.timings_ms, **{k: v for k, v in refined.timings_ms.items() if k in ("refine", "repair")}}
-        return replace(refined, timings_ms=timings, cached=first.cached)
+        return replace(refined, timings_ms=timings, cached=first.cached), thumbs
 
     @Slot(int, object)
     def load_engine(self, token: int, engine: object) -> None:

@@ -108,6 +108,23 @@ def unique_edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(e, axis=0)
 
 
+def is_closed(faces: np.ndarray) -> bool:
+    """Whether triangles (F, 3) form a closed, consistently oriented surface: every directed edge appears once and
+    its reverse once (each edge in exactly two faces, which run along it in opposite directions)."""
+    f = np.asarray(faces, np.int64)
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+        return False
+    a = f.ravel()
+    b = np.roll(f, -1, axis=1).ravel()
+    if np.any(a == b):
+        return False
+    n = int(f.max()) + 1
+    fwd = np.sort(a * n + b)
+    if np.any(fwd[1:] == fwd[:-1]):  # a directed edge twice: not manifold or not consistently oriented
+        return False
+    return bool(np.array_equal(fwd, np.sort(b * n + a)))
+
+
 def adjacent_face_pairs(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of faces sharing an edge, for the dihedral smoothness loss.
 

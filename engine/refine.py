@@ -76,7 +76,7 @@ import numpy as np
 
 from engine.camera import DEFAULT_FOV_DEG, NEAR, Camera, focal_from_fov, frame_camera, view_camera
 from engine.contract import SKETCH_SIZE, SKETCH_STROKE_WIDTH_PX
-from engine.mesh import Mesh
+from engine.mesh import Mesh, is_closed
 
 DEFAULT_STEPS = 3
 """Refinement steps the app uses when refinement is on (chosen from ``sketchmesh bench refine``)."""
@@ -409,10 +409,10 @@ def render_silhouettes(px: np.ndarray, faces: np.ndarray, size: int, *, closed: 
     operations, which K poses share (:func:`fit_camera`'s candidate cameras).
 
     ``closed``: the faces form a closed, consistently oriented surface (every edge in two faces, once each way; see
-    :func:`is_closed`) that lies in front of the camera. Then every sight line that meets the surface crosses it as
-    often inwards as outwards (the camera is outside it), so the faces of either winding on screen cover the whole
-    silhouette: only those of the winding with fewer (face, row) pairs are rasterized, about half. The pixels are the
-    same but where a pixel centre lies on the silhouette's edge to within rounding (a contour edge's two faces
+    :func:`engine.mesh.is_closed`) that lies in front of the camera. Then every sight line that meets the surface
+    crosses it as often inwards as outwards (the camera is outside it), so the faces of either winding on screen cover
+    the whole silhouette: only those of the winding with fewer (face, row) pairs are rasterized, about half. The pixels
+    are the same but where a pixel centre lies on the silhouette's edge to within rounding (a contour edge's two faces
     interpolate it from opposite ends).
 
     Raises:
@@ -669,23 +669,6 @@ def _signed_areas(px: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def _signed_areas_of(t: np.ndarray) -> np.ndarray:
     """(N, 3, 2) screen triangles -> (N,) twice their signed areas."""
     return (t[:, 1, 0] - t[:, 0, 0]) * (t[:, 2, 1] - t[:, 0, 1]) - (t[:, 1, 1] - t[:, 0, 1]) * (t[:, 2, 0] - t[:, 0, 0])
-
-
-def is_closed(faces: np.ndarray) -> bool:
-    """Whether triangles (F, 3) form a closed, consistently oriented surface: every directed edge appears once and
-    its reverse once (each edge in exactly two faces, which run along it in opposite directions)."""
-    f = np.asarray(faces, np.int64)
-    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
-        return False
-    a = f.ravel()
-    b = np.roll(f, -1, axis=1).ravel()
-    if np.any(a == b):
-        return False
-    n = int(f.max()) + 1
-    fwd = np.sort(a * n + b)
-    if np.any(fwd[1:] == fwd[:-1]):  # a directed edge twice: not manifold or not consistently oriented
-        return False
-    return bool(np.array_equal(fwd, np.sort(b * n + a)))
 
 
 def _unproject(px: np.ndarray, depth: np.ndarray, camera: Camera, size: int) -> np.ndarray:

@@ -15,7 +15,7 @@ from onnx_fixtures import write_fixture_models
 from engine.camera import NEAR, Camera
 from engine.cli import MAX_REFINE_STEPS
 from engine.icosphere import icosphere
-from engine.mesh import Mesh
+from engine.mesh import Mesh, is_closed
 from engine.pipeline import STAGES, SketchEngine
 from engine.postprocess import mesh_stats
 from engine.preprocess import rasterize_strokes
@@ -25,7 +25,6 @@ from engine.refine import (
     fill_drawing,
     fit_camera,
     generator_silhouette,
-    is_closed,
     pixel_coords,
     refine_mesh,
     refine_prediction,
