@@ -3295,6 +3295,34 @@ PY
         "$OUT48/models_third4" ;;
     third5-v49)  # the third specialist's fifth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v49 predictor-v49-third5 check-third-v49; do step "$s2"; done ;;
+    compact12-v49)  # the twenty-seventh bundle (OUT48/models_compact11, byte-equal to it) with check-third-v49's specialist
+      # stored as the bundle is as mesh_predictor_third.onnx: OUT49/models_compact12; its other files checked byte-equal
+      [ -f "$OUT49/models_third5/mesh_predictor.onnx" ] || step check-third-v49
+      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
+      compact_swap "$OUT48/models_compact11" "$OUT49/models_third5" "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
+    eval-compact12-clean-v49|eval-compact12-side-v49|eval-compact12-strong-v49)  # models_compact12 on the same drawings
+      # as eval-compact11-*-v48, into OUT49/compact12_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact12-}; c=${c%-v49}
+      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
+      [ -f "$OUT48/compact11_$c/eval_models_test.json" ] || step "eval-compact11-$c-v48"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT49/models_compact12" "$OUT49/compact12_$c" \
+        "$OUT48/compact11_$c/eval_models_test.json" ;;
+    gallery-compact12-v49)  # the gallery of models_compact12: OUT49/gallery_compact12{,_side}.png
+      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
+      route_gallery "$OUT49/models_compact12" "$OUT49/gallery_compact12" ;;
+    third5-route-v49)  # the fifth round routed and measured but for latency, clean first (about 30 min on 2 cores after
+      # third5-v49)
+      for s2 in compact12-v49 eval-compact12-clean-v49 eval-compact12-side-v49 eval-compact12-strong-v49 \
+          gallery-compact12-v49; do
+        step "$s2"
+      done ;;
+    versus-v49)  # from the JSONs already written: the fifth round on the choice set, paired and per category
+      # (check-third-v49), and where models_compact12's router sent every test drawing of each case
+      choice_versus "$OUT49/check_third/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT49/compact12" ;;
+    ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
+      ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
     tradeoff-bundle-v49|docs-v49)  # BUNDLE49 [assets/models: the twenty-seventh bundle once ship-compact11-v48 has run]:
       # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
       # OUT49
