@@ -58,7 +58,7 @@ from engine.models import (
     resolve_models_dir,
     router_path,
 )
-from engine.preprocess import rasterize_strokes, sketch_raster_from_image
+from engine.preprocess import StrokeRasterizer, rasterize_strokes, sketch_raster_from_image
 from engine.refine import MAX_STEPS, refine_prediction
 from engine.strokes import Stroke
 
@@ -204,20 +204,22 @@ def _check_raster(raster: np.ndarray) -> np.ndarray:
     return a
 
 
-def to_raster(sketch) -> np.ndarray:
+def to_raster(sketch, rasterize=rasterize_strokes) -> np.ndarray:
     """Any accepted sketch form -> the preprocessed (256, 256) float32 raster.
 
     Args:
         sketch: a (256, 256) raster (used as given), a sequence of :class:`Stroke`, or an image path.
+        rasterize: what draws strokes (:func:`engine.preprocess.rasterize_strokes`, or a
+            :class:`engine.preprocess.StrokeRasterizer` that remembers the last drawing).
     """
     if isinstance(sketch, (str, os.PathLike)):
         return sketch_raster_from_image(sketch)
     if isinstance(sketch, np.ndarray):
         return _check_raster(sketch)
     if isinstance(sketch, Stroke):
-        return rasterize_strokes([sketch])
+        return rasterize([sketch])
     if isinstance(sketch, Sequence):
-        return rasterize_strokes(sketch)
+        return rasterize(sketch)
     raise SketchInputError(f"a sketch must be a (256, 256) raster, a list of strokes or an image path, got {type(sketch).__name__}")
 
 
@@ -259,6 +261,7 @@ class SketchEngine:
         self._load_lock = threading.Lock()
         self._run_lock = threading.Lock()
         self._cache_lock = threading.Lock()
+        self._rasterize = StrokeRasterizer()  # a growing drawing's strokes are drawn once each
 
     @property
     def models_dir(self) -> Path:
@@ -433,7 +436,7 @@ class SketchEngine:
         """
         steps = self._refine_steps if refine is None else _check_steps(refine)
         t0 = time.perf_counter()
-        raster = to_raster(sketch)
+        raster = to_raster(sketch, self._rasterize)
         raster = np.array(raster, dtype=np.float32)
         raster.setflags(write=False)
         mirror, repair = self._mirror_average, self._repair_folds

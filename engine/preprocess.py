@@ -435,13 +435,41 @@ def _frame_transform(lo: np.ndarray, hi: np.ndarray, size: int = SKETCH_SIZE) ->
     return s, size / 2.0 - s * centre
 
 
+def _checked_strokes(strokes: Sequence[Stroke] | None) -> tuple[list[Stroke], tuple[float, float, float]]:
+    """The strokes as a list, checked, and the frame they are drawn in: ``(scale, x offset, y offset)``
+    (:func:`_frame_transform` of every point's bounding box)."""
+    strokes = list(strokes) if strokes is not None else []
+    if not strokes:
+        raise EmptySketchError("the sketch has no strokes")
+    for k, s in enumerate(strokes):
+        if not isinstance(s, Stroke):
+            raise SketchInputError(f"stroke {k} must be an engine.strokes.Stroke, got {type(s).__name__}")
+    all_pts = np.concatenate([s.points for s in strokes])
+    if not np.all(np.isfinite(all_pts)):
+        raise SketchInputError("stroke points contain NaN or inf")
+    scale, offset = _frame_transform(all_pts.min(axis=0), all_pts.max(axis=0))
+    return strokes, (float(scale), float(offset[0]), float(offset[1]))
+
+
+def _stroke_segments(strokes: Sequence[Stroke], frame: tuple[float, float, float]) -> np.ndarray:
+    """(S, 2, 2) segments of the strokes' polylines in the frame ``(scale, x offset, y offset)``; a
+    single-point stroke is a zero-length segment (a dot)."""
+    scale, offset = frame[0], np.array(frame[1:])
+    segs = []
+    for s in strokes:  # one vectorised block per stroke (strokes, not points)
+        p = s.points * scale + offset
+        segs.append(np.stack([p[:-1], p[1:]], axis=1) if len(p) > 1 else np.stack([p, p], axis=1))
+    return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
+
+
 def rasterize_strokes(strokes: Sequence[Stroke]) -> np.ndarray:
     """Rasterise canvas strokes into the generator's framed, style-normalised input.
 
     The strokes' points (canvas pixels, x right, y down) are framed on their bounding box (centre
     lines, like :func:`preprocess_raster` frames the thinned drawing) and each stroke is drawn as
     a polyline at :data:`SKETCH_STROKE_WIDTH_PX`; pen width and pressure are ignored (the style
-    is normalised). A single-point stroke is a dot.
+    is normalised). A single-point stroke is a dot. :class:`StrokeRasterizer` gives the same
+    raster drawing only what changed since its last call.
 
     Args:
         strokes: non-empty sequence of :class:`engine.strokes.Stroke`.
@@ -453,21 +481,68 @@ def rasterize_strokes(strokes: Sequence[Stroke]) -> np.ndarray:
         EmptySketchError: no strokes.
         SketchInputError: something that is not a Stroke, or non-finite coordinates.
     """
-    strokes = list(strokes) if strokes is not None else []
-    if not strokes:
-        raise EmptySketchError("the sketch has no strokes")
-    for k, s in enumerate(strokes):
-        if not isinstance(s, Stroke):
-            raise SketchInputError(f"stroke {k} must be an engine.strokes.Stroke, got {type(s).__name__}")
-    all_pts = np.concatenate([s.points for s in strokes])
-    if not np.all(np.isfinite(all_pts)):
-        raise SketchInputError("stroke points contain NaN or inf")
-    scale, offset = _frame_transform(all_pts.min(axis=0), all_pts.max(axis=0))
-    segs = []
-    for s in strokes:  # one vectorised block per stroke (strokes, not points)
-        p = s.points * scale + offset
-        segs.append(np.stack([p[:-1], p[1:]], axis=1) if len(p) > 1 else np.stack([p, p], axis=1))
-    return draw_segments(np.concatenate(segs))
+    strokes, frame = _checked_strokes(strokes)
+    return draw_segments(_stroke_segments(strokes, frame))
+
+
+class StrokeRasterizer:
+    """:func:`rasterize_strokes` that draws only the strokes added since its last call.
+
+    A drawing grows one stroke at a time (the canvas sends its committed strokes, the same
+    :class:`engine.strokes.Stroke` objects every time, and the stroke under the pen, a new object
+    every update), so the raster of all strokes but the last is kept with the frame it was drawn
+    in. When the next call's strokes start with the kept ones (the same objects, in order) and the
+    frame is unchanged (no new point outside the bounding box), only the strokes after them are
+    drawn, and combined by the per-pixel maximum that :func:`draw_segments` itself combines pieces
+    with: the result is bit-identical to :func:`rasterize_strokes`. Anything else (a stroke past
+    the drawing's edge, undo, the eraser) draws everything again. A call with exactly the last
+    call's strokes returns its raster again. Safe to call from several threads.
+
+    Attributes:
+        last_drawn_segments: segments drawn by the last call (0 when it repeated the one before).
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._base: tuple[Stroke, ...] = ()  # strokes whose raster is kept
+        self._base_frame: tuple[float, float, float] | None = None
+        self._base_raster: np.ndarray | None = None
+        self._last: tuple[tuple[Stroke, ...], np.ndarray] | None = None  # the last call's strokes and raster
+        self.last_drawn_segments = 0
+
+    @staticmethod
+    def _starts_with(strokes: Sequence[Stroke], kept: tuple[Stroke, ...]) -> bool:
+        return len(kept) <= len(strokes) and all(a is b for a, b in zip(kept, strokes))
+
+    def __call__(self, strokes: Sequence[Stroke]) -> np.ndarray:
+        """The framed raster of ``strokes``, as :func:`rasterize_strokes` (same arguments, result and errors)."""
+        strokes, frame = _checked_strokes(strokes)
+        with self._lock:
+            last = self._last
+            if last is not None and len(last[0]) == len(strokes) and self._starts_with(strokes, last[0]):
+                self.last_drawn_segments = 0
+                return last[1].copy()
+            base, base_frame, base_raster = self._base, self._base_frame, self._base_raster
+        drawn = 0
+        head = strokes[:-1]
+        if base_raster is not None and base_frame == frame and self._starts_with(head, base):
+            new = head[len(base):]
+            raster = base_raster
+        else:
+            new, raster = head, np.zeros((SKETCH_SIZE, SKETCH_SIZE), np.float32)
+        if new:
+            segs = _stroke_segments(new, frame)
+            raster = np.maximum(raster, draw_segments(segs))
+            drawn += len(segs)
+        raster.setflags(write=False)
+        segs = _stroke_segments(strokes[-1:], frame)
+        out = np.maximum(raster, draw_segments(segs))
+        drawn += len(segs)
+        with self._lock:
+            self._base, self._base_frame, self._base_raster = tuple(head), frame, raster
+            self._last = (tuple(strokes), out.copy())
+            self.last_drawn_segments = drawn
+        return out
 
 
 def _skeleton_segments(skel: np.ndarray) -> np.ndarray:

@@ -233,6 +233,23 @@ def test_path_raster_and_strokes_inputs_agree(engine, tmp_path):
     assert engine.predict(str(path)).cached
 
 
+def test_a_growing_drawing_is_rasterized_as_from_scratch(models):
+    """The engine draws only the stroke under the pen once the rest is drawn (engine.preprocess.StrokeRasterizer),
+    and what the networks see is still exactly the stroke list drawn from scratch."""
+    eng = SketchEngine(models, threads=1)
+    outline, cross = _strokes()
+    committed = [outline]
+    for m in (2, 20, 60):  # the stroke under the pen grows inside the outline's box
+        live = Stroke(np.stack([np.linspace(150, 250, m), np.full(m, 150.0)], 1))
+        pred = eng.predict([*committed, live])
+        np.testing.assert_array_equal(pred.sketch, rasterize_strokes([*committed, live]))
+        assert eng._rasterize.last_drawn_segments == (59 if m == 2 else 0) + m - 1
+    committed.append(cross)
+    pred = eng.predict(committed)  # pen-up: the committed stroke is a new object
+    np.testing.assert_array_equal(pred.sketch, rasterize_strokes(committed))
+    assert eng._rasterize.last_drawn_segments == 1
+
+
 def test_predict_is_thread_safe(models):
     eng = SketchEngine(models, threads=1, cache_size=0)
     sketches = [_strokes(float(k)) for k in range(4)]

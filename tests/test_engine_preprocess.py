@@ -14,6 +14,7 @@ from engine.contract import SKETCH_SIZE, SKETCH_STROKE_WIDTH_PX
 from engine.errors import EmptySketchError, SketchInputError
 from engine.preprocess import (
     MIN_IMAGE_SIDE,
+    StrokeRasterizer,
     draw_segments,
     image_header_size,
     load_sketch_image,
@@ -319,6 +320,62 @@ def test_rasterize_strokes_bad_input():
     dot = rasterize_strokes([Stroke([[5.0, 5.0]])])  # one dot at (128, 128): 4 pixel centres at sqrt(0.5)
     np.testing.assert_allclose(dot[127:129, 127:129], 1.5 - np.sqrt(0.5), atol=1e-3)
     assert dot.sum() == pytest.approx(4 * (1.5 - np.sqrt(0.5)), abs=1e-3)
+
+
+def _arc(rng, n=40):
+    t = np.linspace(0.0, 1.0, n)
+    c, r = rng.uniform(100.0, 500.0, 2), rng.uniform(20.0, 150.0)
+    return np.stack([c[0] + r * np.cos(5.0 * t), c[1] + r * np.sin(5.0 * t)], axis=1)
+
+
+def test_stroke_rasterizer_matches_a_full_redraw_through_a_session():
+    """Live updates, pen-ups, strokes past the edge, undo, an erased stroke split in two, a dot: after each, the
+    remembering rasterizer gives exactly (bit for bit) the raster drawn from scratch."""
+    rng = np.random.default_rng(3)
+    draw = StrokeRasterizer()
+    committed: list[Stroke] = []
+
+    def check(strokes):
+        np.testing.assert_array_equal(draw(strokes), rasterize_strokes(strokes))
+
+    for _ in range(6):
+        pts = _arc(rng)
+        for m in (1, 2, 10, 25, 40):  # the stroke under the pen, a new object each update
+            check(committed + [Stroke(pts[:m])])
+        committed.append(Stroke(pts))
+        check(committed)  # pen-up
+    check(committed + [Stroke([[900.0, 900.0], [950.0, 960.0]])])  # past the drawing's edge: a new frame
+    check(committed[:-1])  # undo
+    a, b = committed[2].points[:15], committed[2].points[20:]  # the eraser splits a stroke
+    check(committed[:2] + [Stroke(a), Stroke(b)] + committed[3:])
+    check(committed + [Stroke([[300.0, 300.0]])])  # a dot
+    assert np.array_equal(draw(committed), rasterize_strokes(committed))
+
+
+def test_stroke_rasterizer_draws_only_what_changed():
+    """Work scales with the changed strokes: inside the drawing's bounding box only the stroke under the pen is drawn;
+    a point outside it reframes and so redraws everything; the same strokes again draw nothing."""
+    rng = np.random.default_rng(4)
+    outline = Stroke([[-100.0, -100.0], [700.0, -100.0], [700.0, 700.0], [-100.0, 700.0], [-100.0, -100.0]])  # holds every arc
+    inner = [Stroke(_arc(rng)) for _ in range(5)]
+    draw = StrokeRasterizer()
+    draw([outline, *inner])
+    assert draw.last_drawn_segments == 4 + 5 * 39  # first call: everything
+    live = Stroke(_arc(rng, 12))
+    draw([outline, *inner, live])
+    assert draw.last_drawn_segments == 39 + 11  # the kept raster was of all but the last stroke
+    longer = Stroke(np.concatenate([live.points, [[300.0, 300.0]]]))
+    draw([outline, *inner, longer])
+    assert draw.last_drawn_segments == 12  # the stroke under the pen only
+    draw([outline, *inner, longer])
+    assert draw.last_drawn_segments == 0
+    past = Stroke([[300.0, 300.0], [800.0, 800.0]])
+    draw([outline, *inner, past])
+    assert draw.last_drawn_segments == 4 + 5 * 39 + 1
+    with pytest.raises(EmptySketchError):
+        draw([])
+    with pytest.raises(SketchInputError):
+        draw([outline, np.zeros((3, 2))])
 
 
 def test_jpeg_exif_orientation_is_applied(tmp_path):
