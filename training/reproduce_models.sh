@@ -894,6 +894,12 @@ play_session() {  # one scripted app session (sketchmesh --open SAMPLE --report)
   if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
 }
 
+blank_session() {  # play_session on a blank canvas (sketchmesh --report: no background layer, so the engine is
+  # sent the strokes themselves), report $1
+  local run=(sketchmesh --report "$1")
+  if [ -n "${DISPLAY:-}" ]; then "${run[@]}"; else xvfb-run -a -s "-screen 0 1600x1000x24" "${run[@]}"; fi
+}
+
 play_sessions() {  # three of play_session into folder $1
   mkdir -p "$1"
   local i
@@ -901,7 +907,8 @@ play_sessions() {  # three of play_session into folder $1
 }
 
 session_table() {  # the session reports in folder $1 named LABEL_k.json: per LABEL, the mean over its runs of the UI
-  # lag (p99, max), pen up to mesh on screen (p50), the engine (p50) and its generator stage (p50), the render thread (p50)
+  # lag (p99, max), pen up to mesh on screen (p50), the engine (p50), its preprocess and generator stages (p50), the
+  # render thread (p50)
   python3 - "$1" <<'EOF'
 import json, re, sys
 from collections import defaultdict
@@ -909,12 +916,14 @@ from pathlib import Path
 rows = defaultdict(list)
 for f in sorted(Path(sys.argv[1]).glob("*.json")):
     rows[re.sub(r"_[0-9]+$", "", f.stem)].append(json.loads(f.read_text()))
-print(f"{'run':<16} {'n':>2} {'lag p99':>8} {'lag max':>8} {'pen-up p50':>11} {'engine p50':>11} {'generator':>10} {'render':>7}  ms")
+print(f"{'run':<16} {'n':>2} {'lag p99':>8} {'lag max':>8} {'pen-up p50':>11} {'engine p50':>11} {'preprocess':>11} "
+      f"{'generator':>10} {'render':>7}  ms")
 for label, rs in rows.items():
     def mean(get):
         return sum(get(r) for r in rs) / len(rs)
     print(f"{label:<16} {len(rs):>2} {mean(lambda r: r['lag_ms']['p99']):8.1f} {mean(lambda r: r['lag_ms']['max']):8.1f} "
           f"{mean(lambda r: r['stroke_latency_summary_ms']['p50']):11.0f} {mean(lambda r: r['engine_ms']['p50']):11.1f} "
+          f"{mean(lambda r: r['engine_stages_ms']['preprocess']['p50']):11.1f} "
           f"{mean(lambda r: r['engine_stages_ms']['generator']['p50']):10.1f} {mean(lambda r: r['render_thread_ms']['p50']):7.1f}"
           + ("" if all(not r["error"] for r in rs) else "  (an error: see the reports)"))
 EOF
@@ -3347,6 +3356,19 @@ PY
         play_session "$OUT49/session/after_$i.json"
       done
       session_table "$OUT49/session" ;;
+    strokes-v49)  # the app under the pen on a blank canvas (the engine is sent the strokes, not an image), with the
+      # engine of commit BEFORE49S [1dee70c] (every update rasterized every stroke; from git, first on PYTHONPATH) and with
+      # today's (engine.preprocess.StrokeRasterizer: only the strokes added since the last update): three scripted
+      # sessions each in the real window, reports OUT49/strokes/before_k.json and after_k.json, then their table (run
+      # it alone: it times)
+      local before="$OUT49/strokes_before" i
+      rm -rf "$before"; mkdir -p "$before" "$OUT49/strokes"
+      git archive "${BEFORE49S:-1dee70c}" engine | tar -x -C "$before"
+      for i in 1 2 3; do
+        PYTHONPATH="$before" blank_session "$OUT49/strokes/before_$i.json"
+        blank_session "$OUT49/strokes/after_$i.json"
+      done
+      session_table "$OUT49/strokes" ;;
     ship-fast-v48)  # models_fast's generator becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
       ship_files "$OUT48/models_fast" generator.onnx ;;
