@@ -393,13 +393,12 @@ def draw_segments(segments: np.ndarray, size: int = SKETCH_SIZE, width: float = 
         raise ValueError(f"width must be finite and > 0, got {width}")
     if not np.all(np.isfinite(seg)):
         raise SketchInputError("stroke coordinates contain NaN or inf")
-    out = np.zeros(size * size, np.float32)
     radius = width / 2.0 + 0.5
     # drop segments that cannot touch the image
     lo, hi = seg.min(axis=1), seg.max(axis=1)
     seg = seg[np.all((hi > -radius) & (lo < size + radius), axis=1)]
     if len(seg) == 0:
-        return out.reshape(size, size)
+        return np.zeros((size, size), np.float32)
     # cut into pieces of length <= PIECE_LENGTH_PX
     d = seg[:, 1] - seg[:, 0]
     n = np.maximum(np.ceil(np.linalg.norm(d, axis=1) / PIECE_LENGTH_PX).astype(np.int64), 1)
@@ -407,21 +406,34 @@ def draw_segments(segments: np.ndarray, size: int = SKETCH_SIZE, width: float = 
     k = np.arange(len(sid)) - np.repeat(np.cumsum(n) - n, n)
     p0 = seg[sid, 0] + (k / n[sid])[:, None] * d[sid]
     p1 = seg[sid, 0] + ((k + 1) / n[sid])[:, None] * d[sid]
-    # each piece's pixel window: a fixed K x K block from the floor of its padded box
+    # each piece's pixel window: a fixed K x K block from the floor of its padded box; pieces whose window misses the
+    # image are dropped, and the rest are written into the image padded by K on every side, so no pixel needs a test
     K = int(np.ceil(PIECE_LENGTH_PX + 2 * radius)) + 1
     corner = np.floor(np.minimum(p0, p1) - radius).astype(np.int64)  # (P, 2) (col, row)
-    oc, orow = np.meshgrid(np.arange(K), np.arange(K))
-    col = corner[:, 0:1] + oc.ravel()[None, :]  # (P, K*K)
-    row = corner[:, 1:2] + orow.ravel()[None, :]
-    cx, cy = col + 0.5, row + 0.5
-    dx, dy = (p1 - p0)[:, 0:1], (p1 - p0)[:, 1:2]
+    inside = np.all((corner + K > 0) & (corner < size), axis=1)
+    p0, p1, corner = p0[inside], p1[inside], corner[inside]
+    o = np.arange(K)
+    col = corner[:, 0:1, None] + o[None, None, :]  # (P, 1, K)
+    row = corner[:, 1:2, None] + o[None, :, None]  # (P, K, 1)
+    dv = p1 - p0
+    dx, dy = dv[:, 0, None, None], dv[:, 1, None, None]
     len2 = dx * dx + dy * dy
-    t = np.clip(((cx - p0[:, 0:1]) * dx + (cy - p0[:, 1:2]) * dy) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
-    ex, ey = cx - p0[:, 0:1] - t * dx, cy - p0[:, 1:2] - t * dy
-    cov = np.clip(radius - np.sqrt(ex * ex + ey * ey), 0.0, 1.0)
-    keep = (cov > 0) & (col >= 0) & (col < size) & (row >= 0) & (row < size)
-    np.maximum.at(out, (row[keep] * size + col[keep]), cov[keep].astype(np.float32))
-    return out.reshape(size, size)
+    ax, ay = (col + 0.5) - p0[:, 0, None, None], (row + 0.5) - p0[:, 1, None, None]  # pixel centre - p0
+    t = ax * dx + ay * dy  # (P, K, K), then in place: the nearest point's parameter, the distance, the coverage
+    t /= np.where(len2 > 0, len2, 1.0)
+    np.clip(t, 0.0, 1.0, out=t)
+    ex, ey = ax - t * dx, ay - t * dy
+    ex *= ex
+    ey *= ey
+    ex += ey
+    cov = np.sqrt(ex, out=ex)
+    np.subtract(radius, cov, out=cov)
+    np.clip(cov, 0.0, 1.0, out=cov)
+    side = size + 2 * K
+    keep = cov > 0
+    out = np.zeros(side * side, np.float32)
+    np.maximum.at(out, ((row + K) * side + (col + K))[keep], cov[keep].astype(np.float32))
+    return out.reshape(side, side)[K : K + size, K : K + size].copy()
 
 
 def _frame_transform(lo: np.ndarray, hi: np.ndarray, size: int = SKETCH_SIZE) -> tuple[float, np.ndarray]:

@@ -256,6 +256,23 @@ def test_draw_segments_profile_matches_hand_computation():
         draw_segments(np.array([[[0.0, np.nan], [1.0, 1.0]]]))
 
 
+def test_draw_segments_matches_brute_force_across_the_border():
+    """Every pixel against clip(w/2 + 0.5 - d, 0, 1) with d its exact distance to the nearest segment, for segments
+    that cross the image's edges, lie outside it, run along it, or are dots on a corner."""
+    segs = np.array([[[-30.0, 5.2], [70.0, 5.2]], [[3.3, -10.0], [40.0, 90.0]], [[63.4, 10.0], [63.4, 50.0]],
+                     [[-20.0, -20.0], [-5.0, -3.0]], [[64.0, 64.0], [64.0, 64.0]], [[10.0, 70.0], [50.0, 62.6]],
+                     [[-1.0, 30.0], [-1.0, 30.0]], [[20.0, 20.0], [21.5, 21.0]]])
+    size, width = 64, 3.0
+    c = np.stack(np.meshgrid(np.arange(size) + 0.5, np.arange(size) + 0.5), axis=-1).reshape(-1, 1, 2)  # (x, y)
+    a, b = segs[None, :, 0], segs[None, :, 1]
+    ab = b - a
+    t = np.clip(((c - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-300), 0.0, 1.0)
+    dist = np.linalg.norm(c - (a + t[..., None] * ab), axis=-1).min(axis=1)
+    expected = np.clip(width / 2 + 0.5 - dist, 0.0, 1.0).reshape(size, size)
+    np.testing.assert_allclose(draw_segments(segs, size=size, width=width), expected, atol=1e-6)
+    assert draw_segments(segs[3:4], size=size, width=width).sum() == 0.0  # wholly outside
+
+
 def _canvas_png(strokes: list[Stroke], path, size=(420, 560), pen=5):
     """A canvas-like rasteriser: dark anti-aliased polylines of the pen width on white paper."""
     img = np.full(size, 255, np.uint8)
