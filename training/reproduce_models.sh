@@ -380,6 +380,8 @@ RUNS49=${RUNS49:-runs/v49}
 DATA49N=${DATA49N:-data/third3950v4}
 DATA49=${DATA49:-data/third7250v4}
 BUNDLE49=${BUNDLE49:-assets/models}  # the folder latency-app-v49 times
+OUT50=${OUT50:-out/v50}
+BUNDLE50=${BUNDLE50:-assets/models}  # the folder tradeoff- and docs-v50 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3332,6 +3334,10 @@ PY
     ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
       ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
+    tradeoff-bundle-v50|docs-v50)  # BUNDLE50 [assets/models: the twenty-eighth bundle once ship-compact12-v49 has run]:
+      # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
+      # OUT50
+      bundle_round "${1%%-*}" "$BUNDLE50" "$OUT49/models_compact12" compact12-v49 "$OUT50" v50 ;;
     tradeoff-bundle-v49|docs-v49)  # BUNDLE49 [assets/models: the twenty-seventh bundle once ship-compact11-v48 has run]:
       # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
       # OUT49
