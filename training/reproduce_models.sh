@@ -3334,9 +3334,9 @@ PY
     ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
       ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
-    tradeoff-bundle-v50|docs-v50)  # BUNDLE50 [assets/models: the twenty-eighth bundle once ship-compact12-v49 has run]:
-      # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
-      # OUT50
+    latency-bundle-v50|tradeoff-bundle-v50|docs-v50)  # BUNDLE50 [assets/models: the twenty-eighth bundle once
+      # ship-compact12-v49 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
+      # run these two alone) and the README's gallery and plot (bundle_docs), into OUT50
       bundle_round "${1%%-*}" "$BUNDLE50" "$OUT49/models_compact12" compact12-v49 "$OUT50" v50 ;;
     tradeoff-bundle-v49|docs-v49)  # BUNDLE49 [assets/models: the twenty-seventh bundle once ship-compact11-v48 has run]:
       # its error against run time (bundle_tradeoff; run it alone) and the README's gallery and plot (bundle_docs), into
