@@ -382,6 +382,9 @@ DATA49=${DATA49:-data/third7250v4}
 BUNDLE49=${BUNDLE49:-assets/models}  # the folder latency-app-v49 times
 OUT50=${OUT50:-out/v50}
 BUNDLE50=${BUNDLE50:-assets/models}  # the folder tradeoff- and docs-v50 measure
+RUNS50=${RUNS50:-runs/v50}
+DATA50N=${DATA50N:-data/third4550v4}
+DATA50=${DATA50:-data/third8700v4}
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3334,6 +3337,26 @@ PY
     ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
       ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
+    data-v50)  # DATA50N: rifle, watercraft and sofa shapes 4550-5149 (train split, 4 grid views each; no stage has seen
+      # them) merged with DATA49 into DATA50, and the fifth generator's images (DATA49's rows copied, --reuse); resumes
+      [ -f "$DATA49/.cache/generated/normals16_mirror/info.json" ] || step data-v49
+      CATS="${THIRD[*]}" PER_CAT=600 legs_data 4550 "$DATA50N" "$DATA50" "$DATA49" reuse ;;
+    predictor-v50-third6)  # predictor-v49-third5's run (the bundled third specialist's) trained on a sixth time along a
+      # new cosine (the same rate and recipe) on DATA50, into RUNS50/third6; V36_ITERS [3000], V36_MINUTES [65] at most;
+      # resumes
+      [ -f "$RUNS49/third5/config.json" ] || step predictor-v49-third5
+      [ -f "$DATA50/.cache/generated/normals16_mirror/info.json" ] || step data-v50
+      legs_round "$RUNS49/third5" "$DATA50" "$RUNS50/third6" ;;
+    check-third-v50)  # predictor-v50-third6's run exported as the specialists are (OUT50/models_third6) and scored beside
+      # the twenty-first and the fifth round (float16, as check-third-v49 exported it) on the choice set DATA44C, into
+      # OUT50/check_third; then its paired gains
+      [ -f "$RUNS50/third6/config.json" ] || step predictor-v50-third6
+      [ -f "$OUT49/models_third5/mesh_predictor.onnx" ] || step check-third-v49
+      choice_data "$DATA44C" "${THIRD[@]}"
+      round_check "$OUT50" "$RUNS50/third6" third6 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
+        "$OUT49/models_third5" ;;
+    third6-v50)  # the third specialist's sixth round (data, training, the choice set; about 2 hours on 2 cores)
+      for s2 in data-v50 predictor-v50-third6 check-third-v50; do step "$s2"; done ;;
     latency-bundle-v50|tradeoff-bundle-v50|docs-v50)  # BUNDLE50 [assets/models: the twenty-eighth bundle once
       # ship-compact12-v49 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT50
