@@ -3337,6 +3337,22 @@ PY
     ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
       ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
+    preprocess-v50)  # bench engine's stages (fp32, 2 threads, 60 runs of the bundled sample images: decoding, thinning and
+      # the redraw with draw_segments are its preprocess stage) with the engine of commit BEFORE50 [f4b0db9: draw_segments
+      # before it computed in place] and with today's, into OUT50/preprocess_before.json and _after.json, then both
+      # preprocess stages (run it alone: it times)
+      mkdir -p "$OUT50"
+      with_engine "${BEFORE50:-f4b0db9}" sketchmesh bench engine --variants fp32 --runs 60 --threads 2 \
+        --json "$OUT50/preprocess_before.json"
+      sketchmesh bench engine --variants fp32 --runs 60 --threads 2 --json "$OUT50/preprocess_after.json"
+      python3 - "$OUT50/preprocess_before.json" "$OUT50/preprocess_after.json" <<'EOF'
+import json, sys
+for f in sys.argv[1:]:
+    r = {x["stage"]: x for x in json.load(open(f)) if x["variant"] == "fp32"}
+    print(f"{f}: preprocess p50 {r['preprocess']['p50_ms']:.2f} ms (p95 {r['preprocess']['p95_ms']:.2f}), "
+          f"total p50 {r['total']['p50_ms']:.1f} ms, {r['preprocess']['sketches']} sketches")
+EOF
+      ;;
     data-v50)  # DATA50N: rifle, watercraft and sofa shapes 4550-5149 (train split, 4 grid views each; no stage has seen
       # them) merged with DATA49 into DATA50, and the fifth generator's images (DATA49's rows copied, --reuse); resumes
       [ -f "$DATA49/.cache/generated/normals16_mirror/info.json" ] || step data-v49
