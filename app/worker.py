@@ -306,7 +306,6 @@ class InferenceWorker(QObject):
         else:
             self.resultReady.emit(request_id, (prediction, thumbs))
 
-
     def _predict(self, request_id: int, engine: object, sketch: object) -> tuple[object, Thumbnails | None] | None:
         """(``engine.predict``'s Prediction, its thumbnails); with the refinement on, the unrefined mesh is sent first
         as a preview (module doc). None when the request was superseded after its preview."""
