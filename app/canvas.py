@@ -15,7 +15,8 @@ app hands the worker thread a :class:`CanvasComposite` (an immutable description
 UI thread a composite.
 
 Rendering cost on the UI thread scales with what changed: committed strokes are cached in a
-pixmap; a new stroke is painted onto it, anything else (undo, erase, resize) rebuilds it;
+pixmap; a new stroke is painted onto it, anything else (undo, erase, resize) repaints the
+rectangle it changed, each stroke from a path built once while it lives (:class:`StrokeShape`);
 the background layer is drawn from an image tinted and scaled once per layer and size; while
 drawing, only the live stroke is painted on top. The worker's composite (:func:`render_ink`)
 likewise paints only the strokes added since its last render.
@@ -28,7 +29,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from PySide6.QtCore import QEvent, QPointF, QRect, QRectF, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QLineF, QPointF, QRect, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
     QColor,
     QImage,
@@ -165,7 +166,8 @@ def resample_polyline(points: np.ndarray, pressure: np.ndarray | None, spacing: 
     n_sub = np.maximum(np.ceil(seg / spacing).astype(np.int64), 1)  # pieces per segment
     # parameter of every output point: segment index + fraction
     seg_idx = np.repeat(np.arange(len(seg)), n_sub)
-    frac = np.concatenate([np.arange(k) / k for k in n_sub]) if len(n_sub) else np.zeros(0)
+    first = np.cumsum(n_sub) - n_sub  # index of each segment's first output point
+    frac = (np.arange(int(n_sub.sum())) - np.repeat(first, n_sub)) / np.repeat(n_sub, n_sub)
     out = p[seg_idx] + frac[:, None] * (p[seg_idx + 1] - p[seg_idx])
     out = np.vstack([out, p[-1:]])
     if pressure is None:
@@ -180,7 +182,8 @@ def erase_strokes(
 ) -> tuple[tuple[Stroke, ...], bool]:
     """Remove the parts of strokes within ``radius`` of an eraser path, splitting strokes.
 
-    Only strokes whose padded bounding box meets the eraser's are examined (the rest are
+    Only strokes whose padded bounding box meets the eraser's, and whose recorded points come
+    within reach of it (allowing for their longest segment), are examined (the rest are
     returned as the same objects). A hit stroke is resampled to spacing ``radius / 2`` so
     that a long segment crossing the eraser is cut even if none of its recorded points lies
     under it; the surviving runs of points become new strokes (same width, pressure sliced).
@@ -210,6 +213,12 @@ def erase_strokes(
             out.append(s)
             continue
         reach = radius + pad  # the eraser touches the stroke's visible ink, not only its centre line
+        # Every point of a segment lies within half its length of one of its ends, so when no
+        # recorded point comes within reach + the longest half-segment, no resampled one can.
+        half = np.linalg.norm(np.diff(s.points, axis=0), axis=1).max() / 2.0 if len(s.points) > 1 else 0.0
+        if point_segment_distances(s.points, path).min() > reach + half:
+            out.append(s)
+            continue
         pts, pr = resample_polyline(s.points, s.pressure, max(radius / 2.0, 0.25))
         hit = point_segment_distances(pts, path) <= reach
         if not hit.any():
@@ -250,40 +259,75 @@ def qimage_to_ink(image: QImage) -> np.ndarray:
 
 
 def stroke_path(points: np.ndarray) -> QPainterPath:
-    """A smooth QPainterPath through the points: quadratic curves between segment midpoints."""
+    """A smooth QPainterPath through the points: quadratic curves between segment midpoints.
+
+    Built from plain floats (one ``quadTo`` call a point, no QPointF each): what a repaint
+    of many strokes spends its Python time on.
+    """
     pts = np.asarray(points, dtype=np.float64)
-    path = QPainterPath(QPointF(*pts[0]))
+    x0, y0 = pts[0].tolist()
+    path = QPainterPath(QPointF(x0, y0))
     if len(pts) == 1:
-        path.lineTo(QPointF(pts[0, 0] + 0.01, pts[0, 1]))  # a dot: round caps draw a disc
+        path.lineTo(x0 + 0.01, y0)  # a dot: round caps draw a disc
         return path
     if len(pts) == 2:
-        path.lineTo(QPointF(*pts[1]))
+        path.lineTo(*pts[1].tolist())
         return path
     mids = (pts[1:] + pts[:-1]) / 2.0
-    path.lineTo(QPointF(*mids[0]))
-    for ctrl, end in zip(pts[1:-1], mids[1:]):
-        path.quadTo(QPointF(*ctrl), QPointF(*end))
-    path.lineTo(QPointF(*pts[-1]))
+    path.lineTo(*mids[0].tolist())
+    quad_to = path.quadTo
+    for cx, cy, ex, ey in np.hstack([pts[1:-1], mids[1:]]).tolist():  # control point, then end point
+        quad_to(cx, cy, ex, ey)
+    path.lineTo(*pts[-1].tolist())
     return path
 
 
-def paint_stroke(painter: QPainter, stroke: Stroke, color: QColor) -> None:
-    """Draw one stroke antialiased with round caps; pressure varies the width per segment."""
-    pen = QPen(color, stroke.width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap, Qt.PenJoinStyle.RoundJoin)
+@dataclass(frozen=True, eq=False)
+class StrokeShape:
+    """What painting one stroke needs, built once (:func:`stroke_shape`) and kept while the
+    stroke lives (strokes are immutable), so a repaint of many strokes does no Python work a point.
+
+    Attributes:
+        width: the pen width of ``path``.
+        path: the smooth path, drawn with one pen (no pressure, or pressure that hardly varies);
+            None when the pressure varies.
+        segments: (pen width, segment) a segment, when the pressure varies; empty otherwise.
+    """
+
+    width: float
+    path: QPainterPath | None
+    segments: tuple[tuple[float, QLineF], ...] = ()
+
+
+def stroke_shape(stroke: Stroke) -> StrokeShape:
+    """The stroke's :class:`StrokeShape`: one path at the (mean) pressure's width, or one line a
+    segment at the mean pressure of its two ends when the pressure varies."""
     pr = stroke.pressure
     if pr is None or len(stroke.points) < 2 or float(np.ptp(pr)) < 1e-3:
-        if pr is not None:
-            pen.setWidthF(max(stroke.width * float(pr.mean()), 0.5))
-        painter.setPen(pen)
-        painter.setBrush(Qt.BrushStyle.NoBrush)
-        painter.drawPath(stroke_path(stroke.points))
-        return
+        width = stroke.width if pr is None else max(stroke.width * float(pr.mean()), 0.5)
+        return StrokeShape(width, stroke_path(stroke.points))
     pts = stroke.points
     widths = np.maximum(stroke.width * (pr[1:] + pr[:-1]) / 2.0, 0.5)
-    for (x0, y0), (x1, y1), w in zip(pts[:-1], pts[1:], widths):
-        pen.setWidthF(float(w))
+    rows = np.column_stack([pts[:-1], pts[1:], widths]).tolist()
+    return StrokeShape(stroke.width, None, tuple((w, QLineF(x0, y0, x1, y1)) for x0, y0, x1, y1, w in rows))
+
+
+def paint_stroke(painter: QPainter, stroke: Stroke, color: QColor, shape: StrokeShape | None = None) -> None:
+    """Draw one stroke antialiased with round caps; pressure varies the width per segment.
+
+    ``shape``: the stroke's :func:`stroke_shape` when the caller keeps it (built here otherwise).
+    """
+    shape = stroke_shape(stroke) if shape is None else shape
+    pen = QPen(color, shape.width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap, Qt.PenJoinStyle.RoundJoin)
+    if shape.path is not None:
         painter.setPen(pen)
-        painter.drawLine(QPointF(x0, y0), QPointF(x1, y1))
+        painter.setBrush(Qt.BrushStyle.NoBrush)
+        painter.drawPath(shape.path)
+        return
+    for w, line in shape.segments:
+        pen.setWidthF(w)
+        painter.setPen(pen)
+        painter.drawLine(line)
 
 
 def background_image(layer: BackgroundLayer, color: QColor) -> QImage:
@@ -536,6 +580,7 @@ class SketchCanvas(QWidget):
         self._cache: QPixmap | None = None
         self._cache_key: tuple | None = None
         self._cache_strokes: tuple[Stroke, ...] | None = None
+        self._shapes: weakref.WeakKeyDictionary[Stroke, StrokeShape] = weakref.WeakKeyDictionary()  # UI thread only
 
     # ---- state -------------------------------------------------------------------------
     def sizeHint(self) -> QSize:  # noqa: N802 (Qt API)
@@ -906,7 +951,7 @@ class SketchCanvas(QWidget):
             try:
                 p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
                 for st in strokes[len(done) :]:
-                    paint_stroke(p, st, INK_COLOR)
+                    paint_stroke(p, st, INK_COLOR, self._shape(st))
             finally:
                 p.end()
         else:
@@ -939,9 +984,16 @@ class SketchCanvas(QWidget):
                 p.drawImage(QPointF(round(x), round(y)), shown_background(bg, BACKGROUND_INK_COLOR))
             for st in strokes:
                 if clip is None or _stroke_rect(st).intersects(clip):
-                    paint_stroke(p, st, INK_COLOR)
+                    paint_stroke(p, st, INK_COLOR, self._shape(st))
         finally:
             p.end()
+
+    def _shape(self, stroke: Stroke) -> StrokeShape:
+        """The committed stroke's :class:`StrokeShape`, built on its first paint and dropped with it."""
+        shape = self._shapes.get(stroke)
+        if shape is None:
+            shape = self._shapes[stroke] = stroke_shape(stroke)
+        return shape
 
     def paintEvent(self, event: QPaintEvent) -> None:  # noqa: N802 (Qt API)
         p = QPainter(self)
