@@ -13,6 +13,8 @@ What it measures (written to the report, see :func:`build_report`):
 * ``lag_ms``: the event-loop delay over the whole session, from the moment the window is
   first shown: a :data:`PROBE_INTERVAL_MS` precise QTimer records how late each of its ticks
   fires (p50, p99, max). A stall of the UI thread shows up as one late tick of its length.
+  ``lag_by_phase_ms``: the same per phase of the plan (open, strokes, undo, redo, erase, views,
+  export; the strokes together), so a stall is found in the part of the session that made it.
 * ``pen_delay_ms``: how late each pen event reached the canvas after its scheduled time.
 * ``stroke_latency_ms``: per stroke, pen up to the mesh of the finished drawing on screen
   (debounce + queueing + inference + upload), in stroke order.
@@ -410,6 +412,19 @@ class ScriptedSession:
         return runner.error
 
 
+def phase_group(phase: str) -> str:
+    """The report's name for a probe phase: every ``stroke k`` is ``strokes``, the rest as they are."""
+    return "strokes" if phase.startswith("stroke ") else phase
+
+
+def lags_by_phase(samples: list[tuple[float, float, str]]) -> dict[str, dict[str, float]]:
+    """:func:`_percentiles` of the probe's lateness per :func:`phase_group`, in the order the phases came."""
+    groups: dict[str, list[float]] = {}
+    for _t, lag, phase in samples:
+        groups.setdefault(phase_group(phase), []).append(lag)
+    return {name: _percentiles(v) for name, v in groups.items()}
+
+
 def build_report(session: ScriptedSession, *, sketch: str | None, models: str, duration_s: float, error: str | None) -> dict:
     """The JSON report of a session (keys documented in the module docstring)."""
     log = session.log
@@ -426,6 +441,7 @@ def build_report(session: ScriptedSession, *, sketch: str | None, models: str, d
         "error": error,
         "duration_s": round(duration_s, 2),
         "lag_ms": {**lag, "interval_ms": session.probe.interval_ms},
+        "lag_by_phase_ms": lags_by_phase(session.probe.samples),
         "lag_targets_ms": LAG_TARGETS_MS,
         "lag_targets_met": bool(lag["p99"] < LAG_TARGETS_MS["p99"] and lag["max"] < LAG_TARGETS_MS["max"]),
         "worst_lags": [{"t_s": round(t, 3), "lag_ms": round(v, 2), "phase": ph} for t, v, ph in worst],
@@ -481,6 +497,9 @@ def format_report(r: dict) -> str:
     if cm["count"]:
         lines.append(f"worker, canvas composite (background + strokes): p50 {cm['p50']:.1f} ms  max {cm['max']:.1f} ms  "
                      f"({cm['count']} renders)")
+    phases = r.get("lag_by_phase_ms", {})
+    if phases:
+        lines.append("UI lag by phase, p99 / max: " + ", ".join(f"{k} {v['p99']:.1f} / {v['max']:.1f}" for k, v in phases.items()))
     if r["worst_lags"]:
         lines.append("worst stalls: " + ", ".join(f"{w['lag_ms']:.0f} ms ({w['phase']})" for w in r["worst_lags"][:5]))
     if r["error"]:

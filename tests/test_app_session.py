@@ -58,6 +58,14 @@ def _check_report(r: dict, plan: SessionPlan, export: Path) -> None:
     _check_figures(r["lag_ms"], ("p50", "p99", "max"))
     assert r["lag_ms"]["interval_ms"] == 5 and r["lag_ms"]["count"] > 100
     assert r["lag_targets_ms"] == LAG_TARGETS_MS and isinstance(r["lag_targets_met"], bool)
+    phases = r["lag_by_phase_ms"]  # every tick in one phase: the counts add up, the worst is the session's
+    expected = ["open"] * (r["sketch"] is not None) + ["strokes", "undo", "redo", "erase", "views", "export"]
+    assert [k for k in phases if k not in ("start", "end")] == expected
+    for v in phases.values():
+        _check_figures(v, ("p50", "p99", "max"))
+    assert sum(v["count"] for v in phases.values()) == r["lag_ms"]["count"]
+    assert max(v["max"] for v in phases.values()) == r["lag_ms"]["max"]
+    assert "UI lag by phase" in format_report(r)
     _check_figures(r["pen_delay_ms"], ("p50", "p99", "max"))
     assert r["pen_delay_ms"]["count"] >= plan.strokes * 20  # every pen event was delivered and timed
     lat = r["stroke_latency_ms"]
