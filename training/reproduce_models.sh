@@ -385,6 +385,8 @@ BUNDLE50=${BUNDLE50:-assets/models}  # the folder tradeoff- and docs-v50 measure
 RUNS50=${RUNS50:-runs/v50}
 DATA50N=${DATA50N:-data/third4550v4}
 DATA50=${DATA50:-data/third8700v4}
+OUT51=${OUT51:-out/v51}
+BUNDLE51=${BUNDLE51:-assets/models}  # the folder latency-, tradeoff- and docs-v51 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -913,7 +915,7 @@ play_sessions() {  # three of play_session into folder $1
 
 session_table() {  # the session reports in folder $1 named LABEL_k.json: per LABEL, the mean over its runs of the UI
   # lag (p99, max), pen up to mesh on screen (p50), the engine (p50), its preprocess and generator stages (p50), the
-  # render thread (p50)
+  # render thread (p50), and the UI lag's max while erasing (reports since 2026-11-30 record it; "-" before)
   python3 - "$1" <<'EOF'
 import json, re, sys
 from collections import defaultdict
@@ -922,14 +924,16 @@ rows = defaultdict(list)
 for f in sorted(Path(sys.argv[1]).glob("*.json")):
     rows[re.sub(r"_[0-9]+$", "", f.stem)].append(json.loads(f.read_text()))
 print(f"{'run':<16} {'n':>2} {'lag p99':>8} {'lag max':>8} {'pen-up p50':>11} {'engine p50':>11} {'preprocess':>11} "
-      f"{'generator':>10} {'render':>7}  ms")
+      f"{'generator':>10} {'render':>7} {'erase max':>10}  ms")
 for label, rs in rows.items():
     def mean(get):
         return sum(get(r) for r in rs) / len(rs)
     print(f"{label:<16} {len(rs):>2} {mean(lambda r: r['lag_ms']['p99']):8.1f} {mean(lambda r: r['lag_ms']['max']):8.1f} "
           f"{mean(lambda r: r['stroke_latency_summary_ms']['p50']):11.0f} {mean(lambda r: r['engine_ms']['p50']):11.1f} "
           f"{mean(lambda r: r['engine_stages_ms']['preprocess']['p50']):11.1f} "
-          f"{mean(lambda r: r['engine_stages_ms']['generator']['p50']):10.1f} {mean(lambda r: r['render_thread_ms']['p50']):7.1f}"
+          f"{mean(lambda r: r['engine_stages_ms']['generator']['p50']):10.1f} {mean(lambda r: r['render_thread_ms']['p50']):7.1f} "
+          + (f"{mean(lambda r: r['lag_by_phase_ms']['erase']['max']):10.1f}"
+             if all("erase" in r.get("lag_by_phase_ms", {}) for r in rs) else f"{'-':>10}")
           + ("" if all(not r["error"] for r in rs) else "  (an error: see the reports)"))
 EOF
 }
@@ -3373,6 +3377,38 @@ EOF
         "$OUT49/models_third5" ;;
     third6-v50)  # the third specialist's sixth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v50 predictor-v50-third6 check-third-v50; do step "$s2"; done ;;
+    compact13-v50)  # the twenty-eighth bundle (OUT49/models_compact12, byte-equal to it) with check-third-v50's specialist
+      # stored as the bundle is as mesh_predictor_third.onnx: OUT50/models_compact13; its other files checked byte-equal
+      [ -f "$OUT50/models_third6/mesh_predictor.onnx" ] || step check-third-v50
+      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
+      compact_swap "$OUT49/models_compact12" "$OUT50/models_third6" "$OUT50/models_compact13" mesh_predictor_third.onnx ;;
+    eval-compact13-clean-v50|eval-compact13-side-v50|eval-compact13-strong-v50)  # models_compact13 on the same drawings
+      # as eval-compact12-*-v49, into OUT50/compact13_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact13-}; c=${c%-v50}
+      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
+      [ -f "$OUT49/compact12_$c/eval_models_test.json" ] || step "eval-compact12-$c-v49"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT50/models_compact13" "$OUT50/compact13_$c" \
+        "$OUT49/compact12_$c/eval_models_test.json" ;;
+    gallery-compact13-v50)  # the gallery of models_compact13: OUT50/gallery_compact13{,_side}.png
+      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
+      route_gallery "$OUT50/models_compact13" "$OUT50/gallery_compact13" ;;
+    third6-route-v50)  # the sixth round routed and measured but for latency, clean first (about 30 min on 2 cores after
+      # third6-v50)
+      for s2 in compact13-v50 eval-compact13-clean-v50 eval-compact13-side-v50 eval-compact13-strong-v50 \
+          gallery-compact13-v50; do
+        step "$s2"
+      done ;;
+    versus-v50)  # from the JSONs already written: the sixth round on the choice set, paired and per category
+      # (check-third-v50), and where models_compact13's router sent every test drawing of each case
+      choice_versus "$OUT50/check_third/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT50/compact13" ;;
+    ship-compact13-v50)  # models_compact13's third specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
+      ship_files "$OUT50/models_compact13" mesh_predictor_third.onnx ;;
+    latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
+      # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
+      # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
+      bundle_round "${1%%-*}" "$BUNDLE51" "$OUT50/models_compact13" compact13-v50 "$OUT51" v51 ;;
     latency-bundle-v50|tradeoff-bundle-v50|docs-v50)  # BUNDLE50 [assets/models: the twenty-eighth bundle once
       # ship-compact12-v49 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT50
@@ -3401,6 +3437,21 @@ EOF
         play_session "$OUT49/session/after_$i.json"
       done
       session_table "$OUT49/session" ;;
+    erase-v50)  # the app under the pen on a blank canvas with the canvas of commit BEFORE50E [05c7ec9: every repaint
+      # built each stroke's path point by point, every eraser move resampled every stroke in its box with a Python loop
+      # a segment; today's app otherwise, app/canvas.py from git, first on PYTHONPATH] and with today's (each committed
+      # stroke's path built once while it lives; only strokes within the eraser's reach resampled, in numpy): three
+      # scripted sessions each in the real window, reports OUT50/erase/before_k.json and after_k.json, then their table
+      # with the erase phase's worst stall (run it alone: it times)
+      local before="$OUT50/erase_before" i
+      rm -rf "$before"; mkdir -p "$before" "$OUT50/erase"
+      cp -r app "$before/app"
+      git show "${BEFORE50E:-05c7ec9}:app/canvas.py" > "$before/app/canvas.py"
+      for i in 1 2 3; do
+        PYTHONPATH="$before" blank_session "$OUT50/erase/before_$i.json"
+        blank_session "$OUT50/erase/after_$i.json"
+      done
+      session_table "$OUT50/erase" ;;
     strokes-v49)  # the app under the pen on a blank canvas (the engine is sent the strokes, not an image), with the
       # engine of commit BEFORE49S [1dee70c] (every update rasterized every stroke; from git, first on PYTHONPATH) and with
       # today's (engine.preprocess.StrokeRasterizer: only the strokes added since the last update): three scripted
