@@ -157,24 +157,33 @@ def resample_polyline(points: np.ndarray, pressure: np.ndarray | None, spacing: 
     Returns:
         (N', 2) points and (N',) pressure (or None), N' >= N, the same polyline.
     """
+    out, out_pr, _original = _resample(points, pressure, spacing)
+    return out, out_pr
+
+
+def _resample(points: np.ndarray, pressure: np.ndarray | None, spacing: float) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """:func:`resample_polyline`, and an (N',) mask of the output points that are the input's own."""
     if not (np.isfinite(spacing) and spacing > 0):
         raise ValueError(f"spacing must be finite and > 0, got {spacing}")
     p = np.asarray(points, dtype=np.float64)
     if len(p) < 2:
-        return p.copy(), None if pressure is None else np.asarray(pressure, dtype=np.float64).copy()
+        out_pr = None if pressure is None else np.asarray(pressure, dtype=np.float64).copy()
+        return p.copy(), out_pr, np.ones(len(p), dtype=bool)
     seg = np.linalg.norm(np.diff(p, axis=0), axis=1)  # (N-1,)
     n_sub = np.maximum(np.ceil(seg / spacing).astype(np.int64), 1)  # pieces per segment
     # parameter of every output point: segment index + fraction
     seg_idx = np.repeat(np.arange(len(seg)), n_sub)
-    first = np.cumsum(n_sub) - n_sub  # index of each segment's first output point
+    first = np.cumsum(n_sub) - n_sub  # index of each segment's first output point: the input's own
     frac = (np.arange(int(n_sub.sum())) - np.repeat(first, n_sub)) / np.repeat(n_sub, n_sub)
     out = p[seg_idx] + frac[:, None] * (p[seg_idx + 1] - p[seg_idx])
     out = np.vstack([out, p[-1:]])
+    original = np.zeros(len(out), dtype=bool)
+    original[first] = original[-1] = True
     if pressure is None:
-        return out, None
+        return out, None, original
     pr = np.asarray(pressure, dtype=np.float64)
     out_pr = pr[seg_idx] + frac * (pr[seg_idx + 1] - pr[seg_idx])
-    return out, np.concatenate([out_pr, pr[-1:]])
+    return out, np.concatenate([out_pr, pr[-1:]]), original
 
 
 def erase_strokes(
@@ -186,8 +195,10 @@ def erase_strokes(
     within reach of it (allowing for their longest segment), are examined (the rest are
     returned as the same objects). A hit stroke is resampled to spacing ``radius / 2`` so
     that a long segment crossing the eraser is cut even if none of its recorded points lies
-    under it; the surviving runs of points become new strokes (same width, pressure sliced).
-    Runs of a single point are dropped unless the original stroke was a single dot.
+    under it; each surviving run of samples becomes a new stroke of the stroke's own points
+    in it plus the run's two ends (same width, pressure alongside), so what is left is drawn
+    as it was and a stroke does not gain points each time it is erased. Runs of a single
+    sample are dropped unless the original stroke was a single dot.
 
     Args:
         strokes: the current strokes.
@@ -219,7 +230,7 @@ def erase_strokes(
         if point_segment_distances(s.points, path).min() > reach + half:
             out.append(s)
             continue
-        pts, pr = resample_polyline(s.points, s.pressure, max(radius / 2.0, 0.25))
+        pts, pr, original = _resample(s.points, s.pressure, max(radius / 2.0, 0.25))
         hit = point_segment_distances(pts, path) <= reach
         if not hit.any():
             out.append(s)
@@ -232,7 +243,11 @@ def erase_strokes(
         for a, b in zip(starts, ends):
             if b - a < 2 and len(s.points) > 1:
                 continue
-            out.append(Stroke(pts[a:b], None if pr is None else pr[a:b], s.width))
+            # a piece keeps the stroke's own points and the two ends of the run (where the eraser
+            # cut or the stroke ends): it is drawn as the stroke was, not through the dense samples
+            run = original[a:b].copy()
+            run[0] = run[-1] = True
+            out.append(Stroke(pts[a:b][run], None if pr is None else pr[a:b][run], s.width))
     if not changed:
         return tuple(strokes), False
     return tuple(out), True

@@ -122,8 +122,8 @@ def test_erase_looks_closer_only_at_strokes_within_reach(monkeypatch):
     import app.canvas as canvas_module
 
     resampled = []
-    original = canvas_module.resample_polyline
-    monkeypatch.setattr(canvas_module, "resample_polyline", lambda *a: resampled.append(a) or original(*a))
+    original = canvas_module._resample
+    monkeypatch.setattr(canvas_module, "_resample", lambda *a: resampled.append(a) or original(*a))
     eraser = np.array([[0.0, 0.0], [100.0, 100.0]])  # its box holds both strokes
     far = make_stroke([[80.0, 10.0], [90.0, 20.0]], width=2.0)  # about 49 from the diagonal
     out, changed = erase_strokes((far,), eraser, 5.0)
@@ -148,6 +148,29 @@ def test_erase_splits_a_long_segment_without_points_under_the_eraser():
     # resample step (radius / 2 = 2.5) on each side
     assert np.all(np.abs(np.concatenate([left.points[:, 1], right.points[:, 1]])) < GEOM_TOL)
     assert right.points[:, 0].min() - left.points[:, 0].max() <= 2 * reach + 2 * 2.5 + GEOM_TOL
+
+
+def test_erased_pieces_keep_the_strokes_own_points():
+    """Cutting the middle of a 5-point stroke leaves two pieces made of its own points plus one
+    point at each cut, the cuts where the eraser's reach ends (to within one resample step), so
+    they are drawn as the stroke was; pressure goes along."""
+    pts = np.array([[0.0, 0.0], [10.0, 2.0], [20.0, 0.0], [30.0, 2.0], [40.0, 0.0]])
+    s = Stroke(pts, np.array([0.1, 0.3, 0.5, 0.7, 0.9]), 2.0)
+    out, changed = erase_strokes((s,), np.array([[20.0, -30.0], [20.0, 30.0]]), 4.0)
+    assert changed and len(out) == 2
+    left, right = sorted(out, key=lambda t: t.points[0, 0])
+    reach, step = 4.0 + 1.0, 2.0  # radius + half the width; the resample spacing is radius / 2
+    np.testing.assert_array_equal(left.points[:2], pts[:2])
+    np.testing.assert_array_equal(right.points[1:], pts[3:])
+    assert len(left.points) == 3 and len(right.points) == 3
+    assert 20.0 - reach - step - GEOM_TOL <= left.points[2, 0] < 20.0 - reach
+    assert 20.0 + reach < right.points[0, 0] <= 20.0 + reach + step + GEOM_TOL
+    # the cut points lie on the stroke's segments, with the pressure interpolated there
+    for piece, k in ((left, 2), (right, 0)):
+        x = piece.points[k, 0]
+        np.testing.assert_allclose(piece.points[k, 1], np.interp(x, pts[:, 0], pts[:, 1]), atol=GEOM_TOL)
+        np.testing.assert_allclose(piece.pressure[k], np.interp(x, pts[:, 0], s.pressure), atol=GEOM_TOL)
+    np.testing.assert_array_equal(left.pressure[:2], [0.1, 0.3])
 
 
 def test_erase_untouched_strokes_are_the_same_objects_and_miss_is_a_noop():
