@@ -3440,7 +3440,8 @@ EOF
     erase-v50)  # the app under the pen on a blank canvas with the canvas of commit BEFORE50E [05c7ec9: every repaint
       # built each stroke's path point by point, every eraser move resampled every stroke in its box with a Python loop
       # a segment; today's app otherwise, app/canvas.py from git, first on PYTHONPATH] and with today's (each committed
-      # stroke's path built once while it lives; only strokes within the eraser's reach resampled, in numpy): three
+      # stroke's path built once while it lives; only strokes within the eraser's reach resampled, in numpy; the pieces
+      # the eraser leaves made of the stroke's own points and the cuts, not of the dense samples): three
       # scripted sessions each in the real window, reports OUT50/erase/before_k.json and after_k.json, then their table
       # with the erase phase's worst stall (run it alone: it times)
       local before="$OUT50/erase_before" i
