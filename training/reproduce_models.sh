@@ -3437,22 +3437,25 @@ EOF
         play_session "$OUT49/session/after_$i.json"
       done
       session_table "$OUT49/session" ;;
-    erase-v50)  # the app under the pen on a blank canvas with the canvas of commit BEFORE50E [05c7ec9: every repaint
+    erase-v50|session-v50)  # the app under the pen, erase-v50 on a blank canvas, session-v50 with the bundled sample
+      # opened as the background layer (play_session), with the canvas of commit BEFORE50E [05c7ec9: every repaint
       # built each stroke's path point by point, every eraser move resampled every stroke in its box with a Python loop
       # a segment; today's app otherwise, app/canvas.py from git, first on PYTHONPATH] and with today's (each committed
       # stroke's path built once while it lives; only strokes within the eraser's reach resampled, in numpy; the pieces
-      # the eraser leaves made of the stroke's own points and the cuts, not of the dense samples): three
-      # scripted sessions each in the real window, reports OUT50/erase/before_k.json and after_k.json, then their table
+      # the eraser leaves made of the stroke's own points and the cuts, not of the dense samples): three scripted
+      # sessions each in the real window, reports OUT50/<erase|session>/before_k.json and after_k.json, then their table
       # with the erase phase's worst stall (run it alone: it times)
-      local before="$OUT50/erase_before" i
-      rm -rf "$before"; mkdir -p "$before" "$OUT50/erase"
+      local name=${1%-v50} before i play=blank_session
+      [ "$name" = session ] && play=play_session
+      before="$OUT50/${name}_before"
+      rm -rf "$before"; mkdir -p "$before" "$OUT50/$name"
       cp -r app "$before/app"
       git show "${BEFORE50E:-05c7ec9}:app/canvas.py" > "$before/app/canvas.py"
       for i in 1 2 3; do
-        PYTHONPATH="$before" blank_session "$OUT50/erase/before_$i.json"
-        blank_session "$OUT50/erase/after_$i.json"
+        PYTHONPATH="$before" "$play" "$OUT50/$name/before_$i.json"
+        "$play" "$OUT50/$name/after_$i.json"
       done
-      session_table "$OUT50/erase" ;;
+      session_table "$OUT50/$name" ;;
     strokes-v49)  # the app under the pen on a blank canvas (the engine is sent the strokes, not an image), with the
       # engine of commit BEFORE49S [1dee70c] (every update rasterized every stroke; from git, first on PYTHONPATH) and with
       # today's (engine.preprocess.StrokeRasterizer: only the strokes added since the last update): three scripted
