@@ -269,6 +269,8 @@ class ScriptedSession:
         """CPU time the UI thread used during the session (its own work, the script's included)."""
         self._mesh_ids: list[tuple[int, float]] = []
         self._failed_ids: list[int] = []
+        self._release: tuple[int, float] = (0, 0.0)
+        """(the newest request id, perf_counter()) just before the last drag's pen-up."""
         window.meshUpdated.connect(self._on_mesh)
         window.inferenceFailed.connect(self._on_failed)
 
@@ -321,6 +323,8 @@ class ScriptedSession:
             if i < len(pts) - 1:
                 QTest.mouseMove(canvas, p)
             else:
+                # what the pen-up is measured from: the app may send the drawing within the release itself
+                self._release = (self.window.controller.latest_id, time.perf_counter())
                 QTest.mouseRelease(canvas, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, p)
 
     def _key(self, key: Qt.Key, modifiers: Qt.KeyboardModifier = Qt.KeyboardModifier.NoModifier) -> None:
@@ -341,8 +345,7 @@ class ScriptedSession:
         for k, path in enumerate(stroke_paths(canvas.width(), canvas.height(), plan.strokes, seed=plan.seed)):
             self.probe.phase = f"stroke {k + 1}"
             yield from self._drag(path)
-            released = time.perf_counter()
-            floor = ctrl.latest_id
+            floor, released = self._release  # requests up to floor describe the drawing before the pen-up
             log.strokes_drawn += 1
             yield self._wait_mesh(floor, f"stroke {k + 1}'s mesh")
             log.stroke_latency_ms.append((self._mesh_after(floor) - released) * 1e3)

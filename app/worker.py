@@ -2,7 +2,8 @@
 
 Pattern (as superqt's thread workers): one long-lived :class:`InferenceWorker` QObject is
 moved to a QThread owned by the :class:`InferenceController`, which lives on the GUI thread.
-The controller debounces sketch changes with a single-shot QTimer, tags each request with
+The controller debounces sketch changes with a single-shot QTimer (the first change after a
+pause goes at once, the rest of a burst waits for the last), tags each request with
 an increasing id and sends it through a queued signal. The worker skips requests already
 superseded when it reaches them (so a burst of edits costs one inference, not one per edit)
 and answers with ``resultReady(request_id, Prediction)`` or ``errorOccurred(request_id,
@@ -390,6 +391,7 @@ class InferenceController(QObject):
         self._debounce.setSingleShot(True)
         self._debounce.setInterval(int(debounce_ms))
         self._debounce.timeout.connect(self._fire)
+        self._last_schedule = -float("inf")  # perf_counter() of the last schedule()
         self._thread = QThread()
         self._thread.setObjectName("sketchmesh-inference")
         self._thread.started.connect(lower_thread_priority, Qt.ConnectionType.DirectConnection)  # runs on the new thread
@@ -441,19 +443,28 @@ class InferenceController(QObject):
 
     # ---- requests ------------------------------------------------------------------------
     def schedule(self, provider: Callable[[], SketchInput | None]) -> None:
-        """Ask for inference after the debounce delay; ``provider()`` builds the input then.
+        """Ask for inference: at once when the sketch had been quiet for the debounce delay, else
+        after the delay; ``provider()`` builds the input then.
 
-        Calling again before the delay restarts it: a burst of changes makes one request.
+        The first change after a pause (a pen-up after drawing, a single undo) is sent at once,
+        so its mesh comes a debounce sooner; a change within the delay of the one before restarts
+        the delay, so a burst of changes makes at most two requests, its first and its last.
         Answers to requests sent before this call are dropped from now on (they describe an
         older drawing). ``provider`` returning None means an empty sketch (the viewport is cleared).
         """
         if self._shut_down:
             return
+        now = time.perf_counter()
+        quiet = (now - self._last_schedule) * 1e3 >= self._debounce.interval()
+        self._last_schedule = now
         if self._provider is None:
             # the sketch changed: whatever is in flight now describes an older drawing
             self._invalidate()
         self._provider = provider
-        self._debounce.start()
+        if quiet and not self._debounce.isActive():
+            self._fire()
+        else:
+            self._debounce.start()
 
     def flush(self) -> int | None:
         """Send a scheduled request now (no waiting for the debounce); returns its id."""

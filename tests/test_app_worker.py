@@ -102,19 +102,35 @@ def test_stale_results_are_dropped_and_superseded_requests_skipped(qtbot, contro
     assert [len(x) for x in eng.calls] == [1, 3]  # B never ran: work follows the latest change
 
 
-def test_debounce_coalesces_a_burst_into_one_request(qtbot, controller):
+def test_debounce_sends_the_first_change_at_once_and_coalesces_the_rest_of_a_burst(qtbot, controller):
+    """After a pause the first change is sent within schedule() itself; the nine that follow it
+    within the delay make one more request, sent the delay after the last of them, and only its
+    mesh is shown. After another pause, the next change goes at once again."""
     eng = FakeEngine()
-    c = controller(eng, debounce_ms=60)
-    calls = []
+    c = controller(eng, debounce_ms=200)
+    calls, shown = [], []
+    c.predictionReady.connect(lambda rid, p: shown.append(rid))
 
     def provider():
-        calls.append(1)
-        return _strokes(4)
+        calls.append(time.perf_counter())
+        return _strokes(len(calls))
 
-    with qtbot.waitSignal(c.predictionReady, timeout=5000):
-        for _ in range(10):
-            c.schedule(provider)
-    assert len(calls) == 1 and len(eng.calls) == 1
+    c.schedule(provider)
+    first = c.latest_id
+    assert len(calls) == 1 and c.busy  # sent at once: the sketch had been quiet
+    t_last = None
+    for _ in range(9):
+        c.schedule(provider)
+        t_last = time.perf_counter()
+    assert len(calls) == 1  # the rest wait for the delay
+    qtbot.waitUntil(lambda: not c.busy, timeout=5000)
+    assert len(calls) == 2 and calls[1] - t_last >= 0.19  # one more, the delay after the last change
+    assert shown == [c.latest_id] and c.latest_id > first
+    qtbot.wait(250)  # a pause longer than the delay
+    c.schedule(provider)
+    assert len(calls) == 3
+    qtbot.waitUntil(lambda: not c.busy, timeout=5000)
+    assert shown[-1] == c.latest_id
 
 
 def test_empty_sketch_clears_and_drops_the_running_request(qtbot, controller):
