@@ -3437,6 +3437,19 @@ EOF
         play_session "$OUT49/session/after_$i.json"
       done
       session_table "$OUT49/session" ;;
+    penup-v50)  # the app under the pen on a blank canvas with the inference controller of commit BEFORE50W [5e079de:
+      # every change waited the 100 ms debounce; today's app otherwise, app/worker.py from git, first on PYTHONPATH] and
+      # with today's (the first change after a pause sent at once): three scripted sessions each in the real window,
+      # reports OUT50/penup/before_k.json and after_k.json, then their table (run it alone: it times)
+      local before="$OUT50/penup_before" i
+      rm -rf "$before"; mkdir -p "$before" "$OUT50/penup"
+      cp -r app "$before/app"
+      git show "${BEFORE50W:-5e079de}:app/worker.py" > "$before/app/worker.py"
+      for i in 1 2 3; do
+        PYTHONPATH="$before" blank_session "$OUT50/penup/before_$i.json"
+        blank_session "$OUT50/penup/after_$i.json"
+      done
+      session_table "$OUT50/penup" ;;
     erase-v50|session-v50)  # the app under the pen, erase-v50 on a blank canvas, session-v50 with the bundled sample
       # opened as the background layer (play_session), with the canvas of commit BEFORE50E [05c7ec9: every repaint
       # built each stroke's path point by point, every eraser move resampled every stroke in its box with a Python loop
