@@ -17,7 +17,7 @@ What it measures (written to the report, see :func:`build_report`):
   export; the strokes together), so a stall is found in the part of the session that made it.
 * ``pen_delay_ms``: how late each pen event reached the canvas after its scheduled time.
 * ``stroke_latency_ms``: per stroke, pen up to the mesh of the finished drawing on screen
-  (debounce + queueing + inference + upload), in stroke order.
+  (any debounce + queueing + inference + upload), in stroke order.
 * ``ui_steps_ms``: the work the UI thread still does per result (``MeshViewport.step_ms``),
   measured where it runs; ``render_thread_ms``: VTK render + read-back on the render thread;
   ``composite_ms``: the worker's render of the canvas composite (an opened sketch is a
