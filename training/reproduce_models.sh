@@ -387,6 +387,8 @@ DATA50N=${DATA50N:-data/third4550v4}
 DATA50=${DATA50:-data/third8700v4}
 OUT51=${OUT51:-out/v51}
 BUNDLE51=${BUNDLE51:-assets/models}  # the folder latency-, tradeoff- and docs-v51 measure
+RUNS51=${RUNS51:-runs/v51}
+DATA51=${DATA51:-data/legs2150v4}  # the legged specialist's seventh round: bench, chair and table shapes 2150-2749
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3405,6 +3407,39 @@ EOF
     ship-compact13-v50)  # models_compact13's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
       ship_files "$OUT50/models_compact13" mesh_predictor_third.onnx ;;
+    legged-v51)  # the bundled legged specialist (the sixth round's, int8-stored) beside the twenty-first's generator as a
+      # model folder, OUT51/models_bundle_legged: what its seventh round starts from on a machine without its runs (the
+      # v36-v40 runs stayed on the machine that trained them)
+      rm -rf "$OUT51/models_bundle_legged"; mkdir -p "$OUT51/models_bundle_legged"
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT51/models_bundle_legged/"
+      cp assets/models/mesh_predictor_legged.onnx "$OUT51/models_bundle_legged/mesh_predictor.onnx" ;;
+    data-v51)  # DATA51: bench, chair and table shapes 2150-2749 (train split, 4 grid views each; no stage has seen them;
+      # the legged rounds' earlier data is not on this machine, so these alone), and the fifth generator's images of its
+      # drawings and of their flipped drawings; resumes
+      sketchmesh data --source procedural --first-shape 2150 --shapes-per-category 600 --categories "${LEGS[@]}" \
+        --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$DATA51"
+      sketchmesh data generated "$DATA51" --models "$OUT8/models_fifth" --name normals16 --workers 2
+      sketchmesh data generated "$DATA51" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    import-legs-v51)  # the bundled legged specialist back as a run (RUNS51/bundle_legged/predictor: its weights made
+      # float32, batch norms calibrated on DATA51's generated images)
+      [ -f "$OUT51/models_bundle_legged/mesh_predictor.onnx" ] || step legged-v51
+      [ -f "$DATA51/.cache/generated/normals16_mirror/info.json" ] || step data-v51
+      [ -f "$RUNS51/bundle_legged/predictor/config.json" ] || sketchmesh import-models "$OUT51/models_bundle_legged" \
+        --out "$RUNS51/bundle_legged" --only predictor --data "$DATA51" --threads 2 ;;
+    predictor-v51-legs7)  # the legged specialist's seventh round: the bundled one (import-legs-v51) trained on along a
+      # new cosine by the same recipe and rate on DATA51, into RUNS51/legs7; V36_ITERS [3000], V36_MINUTES [65] at most;
+      # resumes
+      [ -f "$RUNS51/bundle_legged/predictor/config.json" ] || step import-legs-v51
+      legs_round "$RUNS51/bundle_legged/predictor" "$DATA51" "$RUNS51/legs7" ;;
+    check-legs-v51)  # predictor-v51-legs7's run exported as the specialists are (OUT51/models_legs7) and scored beside the
+      # twenty-first and the bundled legged specialist (as shipped, int8-stored) on its choice set DATA36C (rendered first
+      # where missing), into OUT51/check_legs; then its paired gains
+      [ -f "$RUNS51/legs7/config.json" ] || step predictor-v51-legs7
+      [ -f "$OUT51/models_bundle_legged/mesh_predictor.onnx" ] || step legged-v51
+      choice_data "$DATA36C" "${LEGS[@]}"
+      legs_check "$OUT51" "$RUNS51/legs7" legs7 "$OUT36/models_twentyfirst" "$OUT51/models_bundle_legged" ;;
+    legs7-v51)  # the legged specialist's seventh round (data, import, training, the choice set; about 3 hours on 2 cores)
+      for s2 in legged-v51 data-v51 import-legs-v51 predictor-v51-legs7 check-legs-v51; do step "$s2"; done ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
