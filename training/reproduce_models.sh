@@ -940,6 +940,20 @@ for label, rs in rows.items():
 EOF
 }
 
+file_sessions() {  # the app under the pen with app/$2 of commit $3 (today's app otherwise, from git, first on
+  # PYTHONPATH) and with today's, in turn: three sessions each of $4 (play_session or blank_session), reports
+  # OUT50/$1/before_k.json and after_k.json, then their table (run it alone: it times)
+  local before="$OUT50/$1_before" i
+  rm -rf "$before"; mkdir -p "$before" "$OUT50/$1"
+  cp -r app "$before/app"
+  git show "$3:app/$2" > "$before/app/$2"
+  for i in 1 2 3; do
+    PYTHONPATH="$before" "$4" "$OUT50/$1/before_$i.json"
+    "$4" "$OUT50/$1/after_$i.json"
+  done
+  session_table "$OUT50/$1"
+}
+
 with_engine() {  # $1 a commit ("" for the working tree), then a command: the command with that commit's engine/
   # (extracted from git) first on PYTHONPATH, so a step can measure an earlier engine beside today's
   local dir rc=0
@@ -3473,37 +3487,19 @@ EOF
       done
       session_table "$OUT49/session" ;;
     penup-v50)  # the app under the pen on a blank canvas with the inference controller of commit BEFORE50W [5e079de:
-      # every change waited the 100 ms debounce; today's app otherwise, app/worker.py from git, first on PYTHONPATH] and
-      # with today's (the first change after a pause sent at once): three scripted sessions each in the real window,
-      # reports OUT50/penup/before_k.json and after_k.json, then their table (run it alone: it times)
-      local before="$OUT50/penup_before" i
-      rm -rf "$before"; mkdir -p "$before" "$OUT50/penup"
-      cp -r app "$before/app"
-      git show "${BEFORE50W:-5e079de}:app/worker.py" > "$before/app/worker.py"
-      for i in 1 2 3; do
-        PYTHONPATH="$before" blank_session "$OUT50/penup/before_$i.json"
-        blank_session "$OUT50/penup/after_$i.json"
-      done
-      session_table "$OUT50/penup" ;;
+      # every change waited the 100 ms debounce] and with today's (the first change after a pause sent at once):
+      # file_sessions into OUT50/penup
+      file_sessions penup worker.py "${BEFORE50W:-5e079de}" blank_session ;;
     erase-v50|session-v50)  # the app under the pen, erase-v50 on a blank canvas, session-v50 with the bundled sample
       # opened as the background layer (play_session), with the canvas of commit BEFORE50E [05c7ec9: every repaint
       # built each stroke's path point by point, every eraser move resampled every stroke in its box with a Python loop
-      # a segment; today's app otherwise, app/canvas.py from git, first on PYTHONPATH] and with today's (each committed
-      # stroke's path built once while it lives; only strokes within the eraser's reach resampled, in numpy; the pieces
-      # the eraser leaves made of the stroke's own points and the cuts, not of the dense samples): three scripted
-      # sessions each in the real window, reports OUT50/<erase|session>/before_k.json and after_k.json, then their table
-      # with the erase phase's worst stall (run it alone: it times)
-      local name=${1%-v50} before i play=blank_session
-      [ "$name" = session ] && play=play_session
-      before="$OUT50/${name}_before"
-      rm -rf "$before"; mkdir -p "$before" "$OUT50/$name"
-      cp -r app "$before/app"
-      git show "${BEFORE50E:-05c7ec9}:app/canvas.py" > "$before/app/canvas.py"
-      for i in 1 2 3; do
-        PYTHONPATH="$before" "$play" "$OUT50/$name/before_$i.json"
-        "$play" "$OUT50/$name/after_$i.json"
-      done
-      session_table "$OUT50/$name" ;;
+      # a segment] and with today's (each committed stroke's path built once while it lives; only strokes within the
+      # eraser's reach resampled, in numpy; the pieces the eraser leaves made of the stroke's own points and the cuts,
+      # not of the dense samples): file_sessions into OUT50/erase or OUT50/session, its table with the erase phase's
+      # worst stall
+      local play=blank_session
+      [ "$1" = session-v50 ] && play=play_session
+      file_sessions "${1%-v50}" canvas.py "${BEFORE50E:-05c7ec9}" "$play" ;;
     strokes-v49)  # the app under the pen on a blank canvas (the engine is sent the strokes, not an image), with the
       # engine of commit BEFORE49S [1dee70c] (every update rasterized every stroke; from git, first on PYTHONPATH) and with
       # today's (engine.preprocess.StrokeRasterizer: only the strokes added since the last update): three scripted
