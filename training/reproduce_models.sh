@@ -389,6 +389,8 @@ OUT51=${OUT51:-out/v51}
 BUNDLE51=${BUNDLE51:-assets/models}  # the folder latency-, tradeoff- and docs-v51 measure
 RUNS51=${RUNS51:-runs/v51}
 DATA51=${DATA51:-data/legs2150v4}  # the legged specialist's seventh round: bench, chair and table shapes 2150-2749
+OUT52=${OUT52:-out/v52}
+BUNDLE52=${BUNDLE52:-assets/models}  # the folder latency-, tradeoff- and docs-v52 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3454,6 +3456,38 @@ EOF
       legs_check "$OUT51" "$RUNS51/legs7" legs7 "$OUT36/models_twentyfirst" "$OUT51/models_bundle_legged" ;;
     legs7-v51)  # the legged specialist's seventh round (data, import, training, the choice set; about 3 hours on 2 cores)
       for s2 in legged-v51 data-v51 import-legs-v51 predictor-v51-legs7 check-legs-v51; do step "$s2"; done ;;
+    compact14-v51)  # the twenty-ninth bundle (OUT50/models_compact13, byte-equal to it) with check-legs-v51's specialist
+      # stored as the bundle is as mesh_predictor_legged.onnx: OUT51/models_compact14; its other files checked byte-equal
+      [ -f "$OUT51/models_legs7/mesh_predictor.onnx" ] || step check-legs-v51
+      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
+      compact_swap "$OUT50/models_compact13" "$OUT51/models_legs7" "$OUT51/models_compact14" mesh_predictor_legged.onnx ;;
+    eval-compact14-clean-v51|eval-compact14-side-v51|eval-compact14-strong-v51)  # models_compact14 on the same drawings
+      # as eval-compact13-*-v50, into OUT51/compact14_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact14-}; c=${c%-v51}
+      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
+      [ -f "$OUT50/compact13_$c/eval_models_test.json" ] || step "eval-compact13-$c-v50"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT51/models_compact14" "$OUT51/compact14_$c" \
+        "$OUT50/compact13_$c/eval_models_test.json" ;;
+    gallery-compact14-v51)  # the gallery of models_compact14: OUT51/gallery_compact14{,_side}.png
+      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
+      route_gallery "$OUT51/models_compact14" "$OUT51/gallery_compact14" ;;
+    legs7-route-v51)  # the seventh legged round routed and measured but for latency, clean first (about 30 min on 2 cores
+      # after legs7-v51)
+      for s2 in compact14-v51 eval-compact14-clean-v51 eval-compact14-side-v51 eval-compact14-strong-v51 \
+          gallery-compact14-v51; do
+        step "$s2"
+      done ;;
+    versus-v51)  # from the JSONs already written: the seventh legged round on the choice set, paired and per category
+      # (check-legs-v51), and where models_compact14's router sent every test drawing of each case
+      choice_versus "$OUT51/check_legs/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT51/compact14" ;;
+    ship-compact14-v51)  # models_compact14's legged specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
+      ship_files "$OUT51/models_compact14" mesh_predictor_legged.onnx ;;
+    latency-bundle-v52|tradeoff-bundle-v52|docs-v52)  # BUNDLE52 [assets/models: the thirtieth bundle once
+      # ship-compact14-v51 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
+      # run these two alone) and the README's gallery and plot (bundle_docs), into OUT52
+      bundle_round "${1%%-*}" "$BUNDLE52" "$OUT51/models_compact14" compact14-v51 "$OUT52" v52 ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
