@@ -391,6 +391,9 @@ RUNS51=${RUNS51:-runs/v51}
 DATA51=${DATA51:-data/legs2150v4}  # the legged specialist's seventh round: bench, chair and table shapes 2150-2749
 OUT52=${OUT52:-out/v52}
 BUNDLE52=${BUNDLE52:-assets/models}  # the folder latency-, tradeoff- and docs-v52 measure
+RUNS52=${RUNS52:-runs/v52}
+DATA52N=${DATA52N:-data/legs2750v4}  # the legged specialist's eighth round: bench, chair and table shapes 2750-3349 ...
+DATA52=${DATA52:-data/legs3350v4}  # ... merged with DATA51
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3488,6 +3491,25 @@ EOF
       # ship-compact14-v51 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT52
       bundle_round "${1%%-*}" "$BUNDLE52" "$OUT51/models_compact14" compact14-v51 "$OUT52" v52 ;;
+    data-v52)  # DATA52N: bench, chair and table shapes 2750-3349 (train split, 4 grid views each; no stage has seen them)
+      # merged with DATA51 into DATA52, and the fifth generator's images (DATA51's rows copied, --reuse); resumes
+      [ -f "$DATA51/.cache/generated/normals16_mirror/info.json" ] || step data-v51
+      CATS="${LEGS[*]}" PER_CAT=600 legs_data 2750 "$DATA52N" "$DATA52" "$DATA51" reuse ;;
+    predictor-v52-legs8)  # predictor-v51-legs7's run (the bundled legged specialist's) trained on an eighth time along a
+      # new cosine (the same rate and recipe) on DATA52, into RUNS52/legs8; V36_ITERS [3000], V36_MINUTES [65] at most;
+      # resumes
+      [ -f "$RUNS51/legs7/config.json" ] || step predictor-v51-legs7
+      [ -f "$DATA52/.cache/generated/normals16_mirror/info.json" ] || step data-v52
+      legs_round "$RUNS51/legs7" "$DATA52" "$RUNS52/legs8" ;;
+    check-legs-v52)  # predictor-v52-legs8's run exported as the specialists are (OUT52/models_legs8) and scored beside the
+      # twenty-first and the seventh round (float16, as check-legs-v51 exported it) on the choice set DATA36C, into
+      # OUT52/check_legs; then its paired gains
+      [ -f "$RUNS52/legs8/config.json" ] || step predictor-v52-legs8
+      [ -f "$OUT51/models_legs7/mesh_predictor.onnx" ] || step check-legs-v51
+      choice_data "$DATA36C" "${LEGS[@]}"
+      legs_check "$OUT52" "$RUNS52/legs8" legs8 "$OUT36/models_twentyfirst" "$OUT51/models_legs7" ;;
+    legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
+      for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
