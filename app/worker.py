@@ -389,6 +389,9 @@ class InferenceController(QObject):
         self._sent_at: dict[int, float] = {}
         self._debounce = QTimer(self)
         self._debounce.setSingleShot(True)
+        # precise: never early (a coarse timer may fire up to 5 % early), so the last change of a
+        # burst is sent the full delay after it, and schedule()'s "quiet" test agrees with the timer
+        self._debounce.setTimerType(Qt.TimerType.PreciseTimer)
         self._debounce.setInterval(int(debounce_ms))
         self._debounce.timeout.connect(self._fire)
         self._last_schedule = -float("inf")  # perf_counter() of the last schedule()
