@@ -394,6 +394,8 @@ BUNDLE52=${BUNDLE52:-assets/models}  # the folder latency-, tradeoff- and docs-v
 RUNS52=${RUNS52:-runs/v52}
 DATA52N=${DATA52N:-data/legs2750v4}  # the legged specialist's eighth round: bench, chair and table shapes 2750-3349 ...
 DATA52=${DATA52:-data/legs3350v4}  # ... merged with DATA51
+OUT53=${OUT53:-out/v53}
+BUNDLE53=${BUNDLE53:-assets/models}  # the folder latency-, tradeoff- and docs-v53 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3510,6 +3512,38 @@ EOF
       legs_check "$OUT52" "$RUNS52/legs8" legs8 "$OUT36/models_twentyfirst" "$OUT51/models_legs7" ;;
     legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
+    compact15-v52)  # the thirtieth bundle (OUT51/models_compact14, byte-equal to it) with check-legs-v52's specialist
+      # stored as the bundle is as mesh_predictor_legged.onnx: OUT52/models_compact15; its other files checked byte-equal
+      [ -f "$OUT52/models_legs8/mesh_predictor.onnx" ] || step check-legs-v52
+      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
+      compact_swap "$OUT51/models_compact14" "$OUT52/models_legs8" "$OUT52/models_compact15" mesh_predictor_legged.onnx ;;
+    eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52)  # models_compact15 on the same drawings
+      # as eval-compact14-*-v51, into OUT52/compact15_<case>; both means, the paired difference, the three routes
+      local c=${1#eval-compact15-}; c=${c%-v52}
+      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
+      [ -f "$OUT51/compact14_$c/eval_models_test.json" ] || step "eval-compact14-$c-v51"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT52/models_compact15" "$OUT52/compact15_$c" \
+        "$OUT51/compact14_$c/eval_models_test.json" ;;
+    gallery-compact15-v52)  # the gallery of models_compact15: OUT52/gallery_compact15{,_side}.png
+      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
+      route_gallery "$OUT52/models_compact15" "$OUT52/gallery_compact15" ;;
+    legs8-route-v52)  # the eighth legged round routed and measured but for latency, clean first (about 30 min on 2 cores
+      # after legs8-v52)
+      for s2 in compact15-v52 eval-compact15-clean-v52 eval-compact15-side-v52 eval-compact15-strong-v52 \
+          gallery-compact15-v52; do
+        step "$s2"
+      done ;;
+    versus-v52)  # from the JSONs already written: the eighth legged round on the choice set, paired and per category
+      # (check-legs-v52), and where models_compact15's router sent every test drawing of each case
+      choice_versus "$OUT52/check_legs/eval_models_train.json"
+      case_routes "$ROUTES3" "$OUT52/compact15" ;;
+    ship-compact15-v52)  # models_compact15's legged specialist becomes the bundled one (the other files checked byte-equal)
+      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
+      ship_files "$OUT52/models_compact15" mesh_predictor_legged.onnx ;;
+    latency-bundle-v53|tradeoff-bundle-v53|docs-v53)  # BUNDLE53 [assets/models: the thirty-first bundle once
+      # ship-compact15-v52 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
+      # run these two alone) and the README's gallery and plot (bundle_docs), into OUT53
+      bundle_round "${1%%-*}" "$BUNDLE53" "$OUT52/models_compact15" compact15-v52 "$OUT53" v53 ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
