@@ -634,6 +634,42 @@ case_routes() {  # route_counts (ROUTE_GROUPS $1) of each case's eval of one rou
   done
 }
 
+specialist_route() {  # step $1 of a specialist's round $2 (v51) routed and measured as the bundle runs it: the folder
+  # $3/models_$4 is the bundle $5/models_$6 (made by step $6-$7) with the model folder $8's specialist (made by step $9,
+  # whose choice-set eval is $3/check_<kind>) stored as the bundle stores it as ${10}. Its steps: $4-$2 (that folder);
+  # eval-$4-<case>-$2 (every test sketch of the case beside $5/$6_<case>'s eval: both means, the paired difference, the
+  # three routes); gallery-$4-$2; <round>-route-$2 (these in order, clean first: about 30 min on 2 cores); versus-$2 (the
+  # choice set paired and per category, and each case's routes, from the JSONs written); ship-$4-$2 (the specialist into
+  # assets/models, the other files checked byte-equal)
+  local what=$1 tag=$2 out=$3 name=$4 pout=$5 prev=$6 ptag=$7 spec=$8 check=$9 file=${10} c
+  local check_dir=${check%-*}
+  check_dir=$out/${check_dir/-/_}
+  case $what in
+    "$name-$tag")
+      [ -f "$spec/mesh_predictor.onnx" ] || step "$check"
+      [ -f "$pout/models_$prev/router.onnx" ] || step "$prev-$ptag"
+      compact_swap "$pout/models_$prev" "$spec" "$out/models_$name" "$file" ;;
+    eval-"$name"-*-"$tag")
+      c=${what#eval-"$name"-}; c=${c%-"$tag"}
+      [ -f "$out/models_$name/router.onnx" ] || step "$name-$tag"
+      [ -f "$pout/${prev}_$c/eval_models_test.json" ] || step "eval-$prev-$c-$ptag"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$out/models_$name" "$out/${name}_$c" "$pout/${prev}_$c/eval_models_test.json" ;;
+    gallery-"$name"-"$tag")
+      [ -f "$out/models_$name/router.onnx" ] || step "$name-$tag"
+      route_gallery "$out/models_$name" "$out/gallery_$name" ;;
+    *-route-"$tag")
+      for c in "$name-$tag" "eval-$name-clean-$tag" "eval-$name-side-$tag" "eval-$name-strong-$tag" "gallery-$name-$tag"; do
+        step "$c"
+      done ;;
+    versus-"$tag")
+      choice_versus "$check_dir/eval_models_train.json"
+      case_routes "$ROUTES3" "$out/$name" ;;
+    ship-"$name"-"$tag")
+      [ -f "$out/models_$name/router.onnx" ] || step "$name-$tag"
+      ship_files "$out/models_$name" "$file" ;;
+  esac
+}
+
 same_except() {  # every network of the model folder $1 but the files $3... checked byte-equal to the folder $2's
   local f
   for f in "$1"/*.onnx; do
@@ -3336,34 +3372,12 @@ PY
         "$OUT48/models_third4" ;;
     third5-v49)  # the third specialist's fifth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v49 predictor-v49-third5 check-third-v49; do step "$s2"; done ;;
-    compact12-v49)  # the twenty-seventh bundle (OUT48/models_compact11, byte-equal to it) with check-third-v49's specialist
-      # stored as the bundle is as mesh_predictor_third.onnx: OUT49/models_compact12; its other files checked byte-equal
-      [ -f "$OUT49/models_third5/mesh_predictor.onnx" ] || step check-third-v49
-      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
-      compact_swap "$OUT48/models_compact11" "$OUT49/models_third5" "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
-    eval-compact12-clean-v49|eval-compact12-side-v49|eval-compact12-strong-v49)  # models_compact12 on the same drawings
-      # as eval-compact11-*-v48, into OUT49/compact12_<case>; both means, the paired difference, the three routes
-      local c=${1#eval-compact12-}; c=${c%-v49}
-      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
-      [ -f "$OUT48/compact11_$c/eval_models_test.json" ] || step "eval-compact11-$c-v48"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT49/models_compact12" "$OUT49/compact12_$c" \
-        "$OUT48/compact11_$c/eval_models_test.json" ;;
-    gallery-compact12-v49)  # the gallery of models_compact12: OUT49/gallery_compact12{,_side}.png
-      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
-      route_gallery "$OUT49/models_compact12" "$OUT49/gallery_compact12" ;;
-    third5-route-v49)  # the fifth round routed and measured but for latency, clean first (about 30 min on 2 cores after
-      # third5-v49)
-      for s2 in compact12-v49 eval-compact12-clean-v49 eval-compact12-side-v49 eval-compact12-strong-v49 \
-          gallery-compact12-v49; do
-        step "$s2"
-      done ;;
-    versus-v49)  # from the JSONs already written: the fifth round on the choice set, paired and per category
-      # (check-third-v49), and where models_compact12's router sent every test drawing of each case
-      choice_versus "$OUT49/check_third/eval_models_train.json"
-      case_routes "$ROUTES3" "$OUT49/compact12" ;;
-    ship-compact12-v49)  # models_compact12's third specialist becomes the bundled one (the other files checked byte-equal)
-      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
-      ship_files "$OUT49/models_compact12" mesh_predictor_third.onnx ;;
+    compact12-v49|eval-compact12-clean-v49|eval-compact12-side-v49|eval-compact12-strong-v49|gallery-compact12-v49|\
+        third5-route-v49|versus-v49|ship-compact12-v49)  # the third specialist's fifth round (check-third-v49) routed in a
+      # copy of OUT48/models_compact11 (compact12-v49), measured (third5-route-v49), its figures (versus-v49), shipped
+      # (ship-compact12-v49): specialist_route
+      specialist_route "$1" v49 "$OUT49" compact12 "$OUT48" compact11 v48 "$OUT49/models_third5" check-third-v49 \
+        mesh_predictor_third.onnx ;;
     preprocess-v50)  # bench engine's stages (fp32, 2 threads, 60 runs of the bundled sample images: decoding, thinning and
       # the redraw with draw_segments are its preprocess stage) with the engine of commit BEFORE50 [f4b0db9: draw_segments
       # before it computed in place] and with today's, into OUT50/preprocess_before.json and _after.json, then both
@@ -3400,34 +3414,12 @@ EOF
         "$OUT49/models_third5" ;;
     third6-v50)  # the third specialist's sixth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v50 predictor-v50-third6 check-third-v50; do step "$s2"; done ;;
-    compact13-v50)  # the twenty-eighth bundle (OUT49/models_compact12, byte-equal to it) with check-third-v50's specialist
-      # stored as the bundle is as mesh_predictor_third.onnx: OUT50/models_compact13; its other files checked byte-equal
-      [ -f "$OUT50/models_third6/mesh_predictor.onnx" ] || step check-third-v50
-      [ -f "$OUT49/models_compact12/router.onnx" ] || step compact12-v49
-      compact_swap "$OUT49/models_compact12" "$OUT50/models_third6" "$OUT50/models_compact13" mesh_predictor_third.onnx ;;
-    eval-compact13-clean-v50|eval-compact13-side-v50|eval-compact13-strong-v50)  # models_compact13 on the same drawings
-      # as eval-compact12-*-v49, into OUT50/compact13_<case>; both means, the paired difference, the three routes
-      local c=${1#eval-compact13-}; c=${c%-v50}
-      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
-      [ -f "$OUT49/compact12_$c/eval_models_test.json" ] || step "eval-compact12-$c-v49"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT50/models_compact13" "$OUT50/compact13_$c" \
-        "$OUT49/compact12_$c/eval_models_test.json" ;;
-    gallery-compact13-v50)  # the gallery of models_compact13: OUT50/gallery_compact13{,_side}.png
-      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
-      route_gallery "$OUT50/models_compact13" "$OUT50/gallery_compact13" ;;
-    third6-route-v50)  # the sixth round routed and measured but for latency, clean first (about 30 min on 2 cores after
-      # third6-v50)
-      for s2 in compact13-v50 eval-compact13-clean-v50 eval-compact13-side-v50 eval-compact13-strong-v50 \
-          gallery-compact13-v50; do
-        step "$s2"
-      done ;;
-    versus-v50)  # from the JSONs already written: the sixth round on the choice set, paired and per category
-      # (check-third-v50), and where models_compact13's router sent every test drawing of each case
-      choice_versus "$OUT50/check_third/eval_models_train.json"
-      case_routes "$ROUTES3" "$OUT50/compact13" ;;
-    ship-compact13-v50)  # models_compact13's third specialist becomes the bundled one (the other files checked byte-equal)
-      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
-      ship_files "$OUT50/models_compact13" mesh_predictor_third.onnx ;;
+    compact13-v50|eval-compact13-clean-v50|eval-compact13-side-v50|eval-compact13-strong-v50|gallery-compact13-v50|\
+        third6-route-v50|versus-v50|ship-compact13-v50)  # the third specialist's sixth round (check-third-v50) routed in a
+      # copy of OUT49/models_compact12 (compact13-v50), measured (third6-route-v50), its figures (versus-v50), shipped
+      # (ship-compact13-v50): specialist_route
+      specialist_route "$1" v50 "$OUT50" compact13 "$OUT49" compact12 v49 "$OUT50/models_third6" check-third-v50 \
+        mesh_predictor_third.onnx ;;
     legged-v51)  # the bundled legged specialist (the sixth round's, int8-stored) beside the twenty-first's generator as a
       # model folder, OUT51/models_bundle_legged: what its seventh round starts from on a machine without its runs (the
       # v36-v40 runs stayed on the machine that trained them)
@@ -3461,34 +3453,12 @@ EOF
       legs_check "$OUT51" "$RUNS51/legs7" legs7 "$OUT36/models_twentyfirst" "$OUT51/models_bundle_legged" ;;
     legs7-v51)  # the legged specialist's seventh round (data, import, training, the choice set; about 3 hours on 2 cores)
       for s2 in legged-v51 data-v51 import-legs-v51 predictor-v51-legs7 check-legs-v51; do step "$s2"; done ;;
-    compact14-v51)  # the twenty-ninth bundle (OUT50/models_compact13, byte-equal to it) with check-legs-v51's specialist
-      # stored as the bundle is as mesh_predictor_legged.onnx: OUT51/models_compact14; its other files checked byte-equal
-      [ -f "$OUT51/models_legs7/mesh_predictor.onnx" ] || step check-legs-v51
-      [ -f "$OUT50/models_compact13/router.onnx" ] || step compact13-v50
-      compact_swap "$OUT50/models_compact13" "$OUT51/models_legs7" "$OUT51/models_compact14" mesh_predictor_legged.onnx ;;
-    eval-compact14-clean-v51|eval-compact14-side-v51|eval-compact14-strong-v51)  # models_compact14 on the same drawings
-      # as eval-compact13-*-v50, into OUT51/compact14_<case>; both means, the paired difference, the three routes
-      local c=${1#eval-compact14-}; c=${c%-v51}
-      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
-      [ -f "$OUT50/compact13_$c/eval_models_test.json" ] || step "eval-compact13-$c-v50"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT51/models_compact14" "$OUT51/compact14_$c" \
-        "$OUT50/compact13_$c/eval_models_test.json" ;;
-    gallery-compact14-v51)  # the gallery of models_compact14: OUT51/gallery_compact14{,_side}.png
-      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
-      route_gallery "$OUT51/models_compact14" "$OUT51/gallery_compact14" ;;
-    legs7-route-v51)  # the seventh legged round routed and measured but for latency, clean first (about 30 min on 2 cores
-      # after legs7-v51)
-      for s2 in compact14-v51 eval-compact14-clean-v51 eval-compact14-side-v51 eval-compact14-strong-v51 \
-          gallery-compact14-v51; do
-        step "$s2"
-      done ;;
-    versus-v51)  # from the JSONs already written: the seventh legged round on the choice set, paired and per category
-      # (check-legs-v51), and where models_compact14's router sent every test drawing of each case
-      choice_versus "$OUT51/check_legs/eval_models_train.json"
-      case_routes "$ROUTES3" "$OUT51/compact14" ;;
-    ship-compact14-v51)  # models_compact14's legged specialist becomes the bundled one (the other files checked byte-equal)
-      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
-      ship_files "$OUT51/models_compact14" mesh_predictor_legged.onnx ;;
+    compact14-v51|eval-compact14-clean-v51|eval-compact14-side-v51|eval-compact14-strong-v51|gallery-compact14-v51|\
+        legs7-route-v51|versus-v51|ship-compact14-v51)  # the legged specialist's seventh round (check-legs-v51) routed in a
+      # copy of OUT50/models_compact13 (compact14-v51), measured (legs7-route-v51), its figures (versus-v51), shipped
+      # (ship-compact14-v51): specialist_route
+      specialist_route "$1" v51 "$OUT51" compact14 "$OUT50" compact13 v50 "$OUT51/models_legs7" check-legs-v51 \
+        mesh_predictor_legged.onnx ;;
     latency-bundle-v52|tradeoff-bundle-v52|docs-v52)  # BUNDLE52 [assets/models: the thirtieth bundle once
       # ship-compact14-v51 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT52
@@ -3512,34 +3482,12 @@ EOF
       legs_check "$OUT52" "$RUNS52/legs8" legs8 "$OUT36/models_twentyfirst" "$OUT51/models_legs7" ;;
     legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
-    compact15-v52)  # the thirtieth bundle (OUT51/models_compact14, byte-equal to it) with check-legs-v52's specialist
-      # stored as the bundle is as mesh_predictor_legged.onnx: OUT52/models_compact15; its other files checked byte-equal
-      [ -f "$OUT52/models_legs8/mesh_predictor.onnx" ] || step check-legs-v52
-      [ -f "$OUT51/models_compact14/router.onnx" ] || step compact14-v51
-      compact_swap "$OUT51/models_compact14" "$OUT52/models_legs8" "$OUT52/models_compact15" mesh_predictor_legged.onnx ;;
-    eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52)  # models_compact15 on the same drawings
-      # as eval-compact14-*-v51, into OUT52/compact15_<case>; both means, the paired difference, the three routes
-      local c=${1#eval-compact15-}; c=${c%-v52}
-      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
-      [ -f "$OUT51/compact14_$c/eval_models_test.json" ] || step "eval-compact14-$c-v51"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT52/models_compact15" "$OUT52/compact15_$c" \
-        "$OUT51/compact14_$c/eval_models_test.json" ;;
-    gallery-compact15-v52)  # the gallery of models_compact15: OUT52/gallery_compact15{,_side}.png
-      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
-      route_gallery "$OUT52/models_compact15" "$OUT52/gallery_compact15" ;;
-    legs8-route-v52)  # the eighth legged round routed and measured but for latency, clean first (about 30 min on 2 cores
-      # after legs8-v52)
-      for s2 in compact15-v52 eval-compact15-clean-v52 eval-compact15-side-v52 eval-compact15-strong-v52 \
-          gallery-compact15-v52; do
-        step "$s2"
-      done ;;
-    versus-v52)  # from the JSONs already written: the eighth legged round on the choice set, paired and per category
-      # (check-legs-v52), and where models_compact15's router sent every test drawing of each case
-      choice_versus "$OUT52/check_legs/eval_models_train.json"
-      case_routes "$ROUTES3" "$OUT52/compact15" ;;
-    ship-compact15-v52)  # models_compact15's legged specialist becomes the bundled one (the other files checked byte-equal)
-      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
-      ship_files "$OUT52/models_compact15" mesh_predictor_legged.onnx ;;
+    compact15-v52|eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52|gallery-compact15-v52|\
+        legs8-route-v52|versus-v52|ship-compact15-v52)  # the legged specialist's eighth round (check-legs-v52) routed in a
+      # copy of OUT51/models_compact14 (compact15-v52), measured (legs8-route-v52), its figures (versus-v52), shipped
+      # (ship-compact15-v52): specialist_route
+      specialist_route "$1" v52 "$OUT52" compact15 "$OUT51" compact14 v51 "$OUT52/models_legs8" check-legs-v52 \
+        mesh_predictor_legged.onnx ;;
     latency-bundle-v53|tradeoff-bundle-v53|docs-v53)  # BUNDLE53 [assets/models: the thirty-first bundle once
       # ship-compact15-v52 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT53
@@ -3606,37 +3554,15 @@ EOF
     ship-fast-v48)  # models_fast's generator becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
       ship_files "$OUT48/models_fast" generator.onnx ;;
-    compact11-v48)  # models_fast (the twenty-sixth bundle) with check-third-v48's specialist stored as the bundle is as
-      # mesh_predictor_third.onnx: OUT48/models_compact11; its other files checked byte-equal
-      [ -f "$OUT48/models_third4/mesh_predictor.onnx" ] || step check-third-v48
-      [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
-      compact_swap "$OUT48/models_fast" "$OUT48/models_third4" "$OUT48/models_compact11" mesh_predictor_third.onnx ;;
-    eval-compact11-clean-v48|eval-compact11-side-v48|eval-compact11-strong-v48)  # models_compact11 on the same drawings
-      # as eval-fast-*-v48, into OUT48/compact11_<case>; both means, the paired difference, the three routes
-      local c=${1#eval-compact11-}; c=${c%-v48}
-      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
-      [ -f "$OUT48/fast_$c/eval_models_test.json" ] || step "eval-fast-$c-v48"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT48/models_compact11" "$OUT48/compact11_$c" \
-        "$OUT48/fast_$c/eval_models_test.json" ;;
-    gallery-compact11-v48)  # the gallery of models_compact11: OUT48/gallery_compact11{,_side}.png
-      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
-      route_gallery "$OUT48/models_compact11" "$OUT48/gallery_compact11" ;;
-    third4-route-v48)  # the fourth round routed and measured but for latency, clean first (about 30 min on 2 cores after
-      # fast-route-v48)
-      for s2 in compact11-v48 eval-compact11-clean-v48 eval-compact11-side-v48 eval-compact11-strong-v48 \
-          gallery-compact11-v48; do
-        step "$s2"
-      done ;;
-    versus-v48)  # from the JSONs already written: the fourth round on the choice set, paired and per category
-      # (check-third-v48), and where models_compact11's router sent every test drawing of each case
-      choice_versus "$OUT48/check_third/eval_models_train.json"
-      case_routes "$ROUTES3" "$OUT48/compact11" ;;
+    compact11-v48|eval-compact11-clean-v48|eval-compact11-side-v48|eval-compact11-strong-v48|gallery-compact11-v48|\
+        third4-route-v48|versus-v48|ship-compact11-v48)  # the third specialist's fourth round (check-third-v48) routed in a
+      # copy of OUT48/models_fast (compact11-v48), measured (third4-route-v48), its figures (versus-v48), shipped
+      # (ship-compact11-v48): specialist_route
+      specialist_route "$1" v48 "$OUT48" compact11 "$OUT48" fast v48 "$OUT48/models_third4" check-third-v48 \
+        mesh_predictor_third.onnx ;;
     latency-bundle-v48|tradeoff-bundle-v48|docs-v48)  # BUNDLE48 timed in the app's path (bundle_latency), its error against run
       # time (bundle_tradeoff; run these two alone) and the README's gallery and plot (bundle_docs), into OUT48
       bundle_round "${1%%-*}" "$BUNDLE48" "$OUT48/models_fast" fast-v48 "$OUT48" v48 ;;
-    ship-compact11-v48)  # models_compact11's third specialist becomes the bundled one (the other files checked byte-equal)
-      [ -f "$OUT48/models_compact11/router.onnx" ] || step compact11-v48
-      ship_files "$OUT48/models_compact11" mesh_predictor_third.onnx ;;
     ship-compact8-v44)  # models_compact8's router and third specialist join the bundle (after ship-compact7-v43; the other
       # files checked byte-equal)
       [ -f "$OUT44/models_compact8/router.onnx" ] || step compact8-v44
