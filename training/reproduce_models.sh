@@ -527,6 +527,45 @@ legs_round() {  # the predictor run $1 trained on by the specialists' CPU recipe
   RECIPE_LR=${V36_LR:-2e-4} DATA20=$2 recipe20 "$1" "$3" "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2
 }
 
+specialist_round() {  # step $1 (data-vN, predictor-vN-NAME or check-KIND-vN) of a specialist's round that trains the last
+  # round's run on along a new cosine: $2 the specialist (second: airplane, display and lamp, choice set DATA41C; third:
+  # rifle, watercraft and sofa, DATA44C; legs: bench, chair and table, DATA36C), $3 the round's number (52) and $4 its
+  # name (legs8), $5 the last round's number and $6 its name, $7 the number of the data it adds to (DATA$7, made by
+  # data-v$7), $8 the first of the new shapes (600 a category, train split, 4 grid views each: DATA$3N, merged with DATA$7
+  # into DATA$3; no stage has seen them); the model folders after the twenty-first that the check scores it beside,
+  # $9... [the last round's]. The folders DATAn, RUNSn and OUTn by the rounds' numbers; the data and training resume
+  local kind=$2 n=$3 name=$4 p=$5 pname=$6 d=$7 first=$8 v cats choice
+  v=DATA${n}N; local datan=${!v}; v=DATA$n; local data=${!v}; v=DATA$d; local pdata=${!v}
+  v=RUNS$n; local runs=${!v}; v=RUNS$p; local pruns=${!v}; v=OUT$n; local out=${!v}; v=OUT$p; local pout=${!v}
+  local earlier=("${@:9}"); [ ${#earlier[@]} -gt 0 ] || earlier=("$pout/models_$pname")
+  case $kind in
+    second) cats=("${SECOND[@]}"); choice=$DATA41C ;;
+    third) cats=("${THIRD[@]}"); choice=$DATA44C ;;
+    legs) cats=("${LEGS[@]}"); choice=$DATA36C ;;
+    *) echo "specialist_round: no specialist $kind" >&2; return 2 ;;
+  esac
+  case $1 in
+    data-v"$n")
+      [ -f "$pdata/.cache/generated/normals16_mirror/info.json" ] || step "data-v$d"
+      CATS="${cats[*]}" PER_CAT=600 legs_data "$first" "$datan" "$data" "$pdata" reuse ;;
+    predictor-v"$n-$name")  # V36_ITERS [3000], V36_MINUTES [65] at most
+      [ -f "$pruns/$pname/config.json" ] || step "predictor-v$p-$pname"
+      [ -f "$data/.cache/generated/normals16_mirror/info.json" ] || step "data-v$n"
+      legs_round "$pruns/$pname" "$data" "$runs/$name" ;;
+    check-"$kind"-v"$n")  # exported as the specialists are (OUTn/models_NAME: float16 weights, beside the twenty-first's
+      # generator) and scored on the choice set (rendered first where missing) into OUTn/check_KIND; its paired gains
+      [ -f "$runs/$name/config.json" ] || step "predictor-v$n-$name"
+      [ -f "$pout/models_$pname/mesh_predictor.onnx" ] || step "check-$kind-v$p"
+      choice_data "$choice" "${cats[@]}"
+      if [ "$kind" = legs ]; then
+        legs_check "$out" "$runs/$name" "$name" "$OUT36/models_twentyfirst" "${earlier[@]}"
+      else
+        round_check "$out" "$runs/$name" "$name" "$choice" "check_$kind" "$OUT36/models_twentyfirst" "${earlier[@]}"
+      fi ;;
+    *) echo "specialist_round: no step $1 in round $n ($name)" >&2; return 2 ;;
+  esac
+}
+
 legs_supports() {  # how the meshes stand: the twenty-first pair and the model folder $1, mirror averaged, on DATA36T's legged
   # test shapes at 12 views each (canvas path), retrieval among DATA36L's unseen shapes as the real shapes; into $2
   sketchmesh eval --models "$OUT36/models_twentyfirst" --models "$1" --mirror-only --data "$DATA36T" --split test \
@@ -2860,24 +2899,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # engine, mirror averaged, into OUT41/check_second; then its paired gain
       [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
       first_check "$RUNS41/second" "$DATA41C" "$OUT41" second "${SECOND[@]}" ;;
-    data-v42)  # DATA42N: airplane, display and lamp shapes 2150-2749 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA41 into DATA42, and the fifth generator's images (DATA41's rows copied, --reuse); resumes
-      [ -f "$DATA41/.cache/generated/normals16_mirror/info.json" ] || step data-v41
-      CATS="${SECOND[*]}" PER_CAT=600 legs_data 2150 "$DATA42N" "$DATA42" "$DATA41" reuse ;;
-    predictor-v42-second2)  # predictor-v41-second's run trained on a second time along a new cosine (the same rate and
-      # recipe) on DATA42 (600 unseen shapes a category more), into RUNS42/second2; V36_ITERS [3000], V36_MINUTES [65]
-      # at most; resumes
-      [ -f "$DATA42/.cache/generated/normals16_mirror/info.json" ] || step data-v42
-      [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
-      legs_round "$RUNS41/second" "$DATA42" "$RUNS42/second2" ;;
-    check-second-v42)  # predictor-v42-second2's run exported as the specialists are (float16 weights, beside the
-      # twenty-first's generator; OUT42/models_second2) and scored beside the twenty-first and the first round on the
-      # choice set DATA41C (check-second-v41) through the app's engine, mirror averaged, into OUT42/check_second; then
-      # its paired gains
-      [ -f "$RUNS42/second2/config.json" ] || step predictor-v42-second2
-      [ -f "$OUT41/models_second/mesh_predictor.onnx" ] || step check-second-v41
-      round_check "$OUT42" "$RUNS42/second2" second2 "$DATA41C" check_second "$OUT36/models_twentyfirst" \
-        "$OUT41/models_second" ;;
+    data-v42|predictor-v42-second2|check-second-v42)  # the second specialist's second round:
+      # airplane, display and lamp shapes 2150-2749 merged with DATA41 into DATA42, predictor-v41-second's run
+      # trained on along a new cosine into RUNS42/second2, scored beside the twenty-first and the last round on
+      # the choice set into OUT42/check_second: specialist_round
+      specialist_round "$1" second 42 second2 41 second 41 2150 ;;
     second2-v42)  # the second specialist's second round: data-v42 predictor-v42-second2 check-second-v42 (about 45 min)
       for s2 in data-v42 predictor-v42-second2 check-second-v42; do step "$s2"; done ;;
     router-second-v42)  # how the bundled router (router-v37's run) would route the second specialist's categories: its
@@ -2928,23 +2954,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # generator, predictor and legged specialist, checked byte-equal to its own
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       ship_files "$OUT42/models_compact6" router.onnx mesh_predictor_second.onnx ;;
-    data-v43)  # DATA43N: airplane, display and lamp shapes 2750-3349 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA42 into DATA43, and the fifth generator's images (DATA42's rows copied, --reuse); resumes
-      [ -f "$DATA42/.cache/generated/normals16_mirror/info.json" ] || step data-v42
-      CATS="${SECOND[*]}" PER_CAT=600 legs_data 2750 "$DATA43N" "$DATA43" "$DATA42" reuse ;;
-    predictor-v43-second3)  # predictor-v42-second2's run trained on a third time along a new cosine (the same rate and
-      # recipe) on DATA43 (600 unseen shapes a category more again), into RUNS43/second3; V36_ITERS [3000], V36_MINUTES
-      # [65] at most; resumes
-      [ -f "$DATA43/.cache/generated/normals16_mirror/info.json" ] || step data-v43
-      [ -f "$RUNS42/second2/config.json" ] || step predictor-v42-second2
-      legs_round "$RUNS42/second2" "$DATA43" "$RUNS43/second3" ;;
-    check-second-v43)  # predictor-v43-second3's run exported as the specialists are (OUT43/models_second3) and scored
-      # beside the twenty-first and the first two rounds on the choice set DATA41C as check-second-v42, into
-      # OUT43/check_second; then its paired gains
-      [ -f "$RUNS43/second3/config.json" ] || step predictor-v43-second3
-      [ -f "$OUT42/models_second2/mesh_predictor.onnx" ] || step check-second-v42
-      round_check "$OUT43" "$RUNS43/second3" second3 "$DATA41C" check_second "$OUT36/models_twentyfirst" \
-        "$OUT41/models_second" "$OUT42/models_second2" ;;
+    data-v43|predictor-v43-second3|check-second-v43)  # the second specialist's third round:
+      # airplane, display and lamp shapes 2750-3349 merged with DATA42 into DATA43, predictor-v42-second2's run
+      # trained on along a new cosine into RUNS43/second3, scored beside the twenty-first and the earlier rounds on
+      # the choice set into OUT43/check_second: specialist_round
+      specialist_round "$1" second 43 second3 42 second2 42 2750 "$OUT41/models_second" "$OUT42/models_second2" ;;
     compact7-v43)  # models_routed6 with predictor-v43-second3's specialist as mesh_predictor_second.onnx (OUT43/models_routed7),
       # stored as the bundle is into OUT43/models_compact7; its other files checked byte-equal to models_compact6's
       [ -f "$OUT43/models_second3/mesh_predictor.onnx" ] || step check-second-v43
@@ -3057,23 +3071,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     docs-v44)  # the README's gallery and error-against-run-time plot, of BUNDLE44 (bundle_docs): OUT44/gallery_bundle*
       [ -f "$OUT44/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v44
       bundle_docs "$BUNDLE44" "$OUT44/gallery_bundle" "$OUT44/tradeoff_bundle" ;;
-    data-v45)  # DATA45N: rifle, watercraft and sofa shapes 2150-2749 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA44 into DATA45, and the fifth generator's images (DATA44's rows copied, --reuse); resumes
-      [ -f "$DATA44/.cache/generated/normals16_mirror/info.json" ] || step data-v44
-      CATS="${THIRD[*]}" PER_CAT=600 legs_data 2150 "$DATA45N" "$DATA45" "$DATA44" reuse ;;
-    predictor-v45-third2)  # predictor-v44-third's run trained on a second time along a new cosine (the same rate and
-      # recipe) on DATA45 (600 unseen shapes a category more), into RUNS45/third2; V36_ITERS [3000], V36_MINUTES [65]
-      # at most; resumes
-      [ -f "$DATA45/.cache/generated/normals16_mirror/info.json" ] || step data-v45
-      [ -f "$RUNS44/third/config.json" ] || step predictor-v44-third
-      legs_round "$RUNS44/third" "$DATA45" "$RUNS45/third2" ;;
-    check-third-v45)  # predictor-v45-third2's run exported as the specialists are (OUT45/models_third2) and scored beside
-      # the twenty-first and the first round on the choice set DATA44C (check-third-v44), into OUT45/check_third; then
-      # its paired gains
-      [ -f "$RUNS45/third2/config.json" ] || step predictor-v45-third2
-      [ -f "$OUT44/models_third/mesh_predictor.onnx" ] || step check-third-v44
-      round_check "$OUT45" "$RUNS45/third2" third2 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
-        "$OUT44/models_third" ;;
+    data-v45|predictor-v45-third2|check-third-v45)  # the third specialist's second round:
+      # rifle, watercraft and sofa shapes 2150-2749 merged with DATA44 into DATA45, predictor-v44-third's run
+      # trained on along a new cosine into RUNS45/third2, scored beside the twenty-first and the last round on
+      # the choice set into OUT45/check_third: specialist_round
+      specialist_round "$1" third 45 third2 44 third 44 2150 ;;
     third2-v45)  # the third specialist's second round: data-v45 predictor-v45-third2 check-third-v45 (about 50 min)
       for s2 in data-v45 predictor-v45-third2 check-third-v45; do step "$s2"; done ;;
     compact9-v45)  # models_routed8 with predictor-v45-third2's specialist as mesh_predictor_third.onnx (OUT45/models_routed9),
@@ -3117,22 +3119,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # files checked byte-equal)
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
       ship_files "$OUT45/models_compact9" mesh_predictor_third.onnx ;;
-    data-v46)  # DATA46N: rifle, watercraft and sofa shapes 2750-3349 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA45 into DATA46, and the fifth generator's images (DATA45's rows copied, --reuse); resumes
-      [ -f "$DATA45/.cache/generated/normals16_mirror/info.json" ] || step data-v45
-      CATS="${THIRD[*]}" PER_CAT=600 legs_data 2750 "$DATA46N" "$DATA46" "$DATA45" reuse ;;
-    predictor-v46-third3)  # predictor-v45-third2's run trained on a third time along a new cosine (the same rate and
-      # recipe) on DATA46 (600 unseen shapes a category more again), into RUNS46/third3; V36_ITERS [3000], V36_MINUTES
-      # [65] at most; resumes. Started at the end of the session of 2026-11-29 (the twenty-fourth bundle's)
-      [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
-      [ -f "$RUNS45/third2/config.json" ] || step predictor-v45-third2
-      legs_round "$RUNS45/third2" "$DATA46" "$RUNS46/third3" ;;
-    check-third-v46)  # predictor-v46-third3's run exported as the specialists are (OUT46/models_third3) and scored beside
-      # the twenty-first and the first two rounds on the choice set DATA44C, into OUT46/check_third; then its paired gains
-      [ -f "$RUNS46/third3/config.json" ] || step predictor-v46-third3
-      [ -f "$OUT45/models_third2/mesh_predictor.onnx" ] || step check-third-v45
-      round_check "$OUT46" "$RUNS46/third3" third3 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
-        "$OUT44/models_third" "$OUT45/models_third2" ;;
+    data-v46|predictor-v46-third3|check-third-v46)  # the third specialist's third round:
+      # rifle, watercraft and sofa shapes 2750-3349 merged with DATA45 into DATA46, predictor-v45-third2's run
+      # trained on along a new cosine into RUNS46/third3, scored beside the twenty-first and the earlier rounds on
+      # the choice set into OUT46/check_third: specialist_round
+      specialist_round "$1" third 46 third3 45 third2 45 2750 "$OUT44/models_third" "$OUT45/models_third2" ;;
     third3-v46)  # the third specialist's third round: data-v46 predictor-v46-third3 check-third-v46 (about 50 min)
       for s2 in data-v46 predictor-v46-third3 check-third-v46; do step "$s2"; done ;;
     bundle24-v47)  # the twenty-fourth bundle as shipped (git TWENTYFOURTH [3411188], its six files) into OUT47/models_bundle24,
@@ -3207,24 +3198,11 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     ship-compact10-v47)  # models_compact10's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
       ship_files "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
-    data-v48)  # DATA48N: rifle, watercraft and sofa shapes 3350-3949 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA46 into DATA48, and the fifth generator's images (DATA46's rows copied, --reuse); resumes
-      [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
-      CATS="${THIRD[*]}" PER_CAT=600 legs_data 3350 "$DATA48N" "$DATA48" "$DATA46" reuse ;;
-    predictor-v48-third4)  # predictor-v47-third3's run trained on a fourth time along a new cosine (the same rate and
-      # recipe) on DATA48 (600 unseen shapes a category more again), into RUNS48/third4; V36_ITERS [3000], V36_MINUTES
-      # [65] at most; resumes
-      [ -f "$RUNS47/third3/config.json" ] || step predictor-v47-third3
-      [ -f "$DATA48/.cache/generated/normals16_mirror/info.json" ] || step data-v48
-      legs_round "$RUNS47/third3" "$DATA48" "$RUNS48/third4" ;;
-    check-third-v48)  # predictor-v48-third4's run exported as the specialists are (OUT48/models_third4) and scored beside the
-      # twenty-first and the third round (float16, as check-third-v47 exported it) on the choice set DATA44C, into
-      # OUT48/check_third; then its paired gains
-      [ -f "$RUNS48/third4/config.json" ] || step predictor-v48-third4
-      [ -f "$OUT47/models_third3/mesh_predictor.onnx" ] || step check-third-v47
-      choice_data "$DATA44C" "${THIRD[@]}"
-      round_check "$OUT48" "$RUNS48/third4" third4 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
-        "$OUT47/models_third3" ;;
+    data-v48|predictor-v48-third4|check-third-v48)  # the third specialist's fourth round:
+      # rifle, watercraft and sofa shapes 3350-3949 merged with DATA46 into DATA48, predictor-v47-third3's run
+      # trained on along a new cosine into RUNS48/third4, scored beside the twenty-first and the last round on
+      # the choice set into OUT48/check_third: specialist_round
+      specialist_round "$1" third 48 third4 47 third3 46 3350 ;;
     third4-v48)  # the third specialist's fourth round (about 75 min on 2 cores after third3-v47)
       for s2 in data-v48 predictor-v48-third4 check-third-v48; do step "$s2"; done ;;
     fast-v48)  # the twenty-fifth bundle (models_compact10) with its generator's decoder made sub-pixel convolutions
@@ -3352,24 +3330,11 @@ PY
         sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
           --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet --out "$OUT49/latency_$path"
       done ;;
-    data-v49)  # DATA49N: rifle, watercraft and sofa shapes 3950-4549 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA48 into DATA49, and the fifth generator's images (DATA48's rows copied, --reuse); resumes
-      [ -f "$DATA48/.cache/generated/normals16_mirror/info.json" ] || step data-v48
-      CATS="${THIRD[*]}" PER_CAT=600 legs_data 3950 "$DATA49N" "$DATA49" "$DATA48" reuse ;;
-    predictor-v49-third5)  # predictor-v48-third4's run (the bundled third specialist's) trained on a fifth time along a
-      # new cosine (the same rate and recipe) on DATA49, into RUNS49/third5; V36_ITERS [3000], V36_MINUTES [65] at most;
-      # resumes
-      [ -f "$RUNS48/third4/config.json" ] || step predictor-v48-third4
-      [ -f "$DATA49/.cache/generated/normals16_mirror/info.json" ] || step data-v49
-      legs_round "$RUNS48/third4" "$DATA49" "$RUNS49/third5" ;;
-    check-third-v49)  # predictor-v49-third5's run exported as the specialists are (OUT49/models_third5) and scored beside
-      # the twenty-first and the fourth round (float16, as check-third-v48 exported it) on the choice set DATA44C, into
-      # OUT49/check_third; then its paired gains
-      [ -f "$RUNS49/third5/config.json" ] || step predictor-v49-third5
-      [ -f "$OUT48/models_third4/mesh_predictor.onnx" ] || step check-third-v48
-      choice_data "$DATA44C" "${THIRD[@]}"
-      round_check "$OUT49" "$RUNS49/third5" third5 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
-        "$OUT48/models_third4" ;;
+    data-v49|predictor-v49-third5|check-third-v49)  # the third specialist's fifth round:
+      # rifle, watercraft and sofa shapes 3950-4549 merged with DATA48 into DATA49, predictor-v48-third4's run
+      # trained on along a new cosine into RUNS49/third5, scored beside the twenty-first and the last round on
+      # the choice set into OUT49/check_third: specialist_round
+      specialist_round "$1" third 49 third5 48 third4 48 3950 ;;
     third5-v49)  # the third specialist's fifth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v49 predictor-v49-third5 check-third-v49; do step "$s2"; done ;;
     compact12-v49|eval-compact12-clean-v49|eval-compact12-side-v49|eval-compact12-strong-v49|gallery-compact12-v49|\
@@ -3394,24 +3359,11 @@ for f in sys.argv[1:]:
           f"total p50 {r['total']['p50_ms']:.1f} ms, {r['preprocess']['sketches']} sketches")
 EOF
       ;;
-    data-v50)  # DATA50N: rifle, watercraft and sofa shapes 4550-5149 (train split, 4 grid views each; no stage has seen
-      # them) merged with DATA49 into DATA50, and the fifth generator's images (DATA49's rows copied, --reuse); resumes
-      [ -f "$DATA49/.cache/generated/normals16_mirror/info.json" ] || step data-v49
-      CATS="${THIRD[*]}" PER_CAT=600 legs_data 4550 "$DATA50N" "$DATA50" "$DATA49" reuse ;;
-    predictor-v50-third6)  # predictor-v49-third5's run (the bundled third specialist's) trained on a sixth time along a
-      # new cosine (the same rate and recipe) on DATA50, into RUNS50/third6; V36_ITERS [3000], V36_MINUTES [65] at most;
-      # resumes
-      [ -f "$RUNS49/third5/config.json" ] || step predictor-v49-third5
-      [ -f "$DATA50/.cache/generated/normals16_mirror/info.json" ] || step data-v50
-      legs_round "$RUNS49/third5" "$DATA50" "$RUNS50/third6" ;;
-    check-third-v50)  # predictor-v50-third6's run exported as the specialists are (OUT50/models_third6) and scored beside
-      # the twenty-first and the fifth round (float16, as check-third-v49 exported it) on the choice set DATA44C, into
-      # OUT50/check_third; then its paired gains
-      [ -f "$RUNS50/third6/config.json" ] || step predictor-v50-third6
-      [ -f "$OUT49/models_third5/mesh_predictor.onnx" ] || step check-third-v49
-      choice_data "$DATA44C" "${THIRD[@]}"
-      round_check "$OUT50" "$RUNS50/third6" third6 "$DATA44C" check_third "$OUT36/models_twentyfirst" \
-        "$OUT49/models_third5" ;;
+    data-v50|predictor-v50-third6|check-third-v50)  # the third specialist's sixth round:
+      # rifle, watercraft and sofa shapes 4550-5149 merged with DATA49 into DATA50, predictor-v49-third5's run
+      # trained on along a new cosine into RUNS50/third6, scored beside the twenty-first and the last round on
+      # the choice set into OUT50/check_third: specialist_round
+      specialist_round "$1" third 50 third6 49 third5 49 4550 ;;
     third6-v50)  # the third specialist's sixth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v50 predictor-v50-third6 check-third-v50; do step "$s2"; done ;;
     compact13-v50|eval-compact13-clean-v50|eval-compact13-side-v50|eval-compact13-strong-v50|gallery-compact13-v50|\
@@ -3463,23 +3415,11 @@ EOF
       # ship-compact14-v51 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT52
       bundle_round "${1%%-*}" "$BUNDLE52" "$OUT51/models_compact14" compact14-v51 "$OUT52" v52 ;;
-    data-v52)  # DATA52N: bench, chair and table shapes 2750-3349 (train split, 4 grid views each; no stage has seen them)
-      # merged with DATA51 into DATA52, and the fifth generator's images (DATA51's rows copied, --reuse); resumes
-      [ -f "$DATA51/.cache/generated/normals16_mirror/info.json" ] || step data-v51
-      CATS="${LEGS[*]}" PER_CAT=600 legs_data 2750 "$DATA52N" "$DATA52" "$DATA51" reuse ;;
-    predictor-v52-legs8)  # predictor-v51-legs7's run (the bundled legged specialist's) trained on an eighth time along a
-      # new cosine (the same rate and recipe) on DATA52, into RUNS52/legs8; V36_ITERS [3000], V36_MINUTES [65] at most;
-      # resumes
-      [ -f "$RUNS51/legs7/config.json" ] || step predictor-v51-legs7
-      [ -f "$DATA52/.cache/generated/normals16_mirror/info.json" ] || step data-v52
-      legs_round "$RUNS51/legs7" "$DATA52" "$RUNS52/legs8" ;;
-    check-legs-v52)  # predictor-v52-legs8's run exported as the specialists are (OUT52/models_legs8) and scored beside the
-      # twenty-first and the seventh round (float16, as check-legs-v51 exported it) on the choice set DATA36C, into
-      # OUT52/check_legs; then its paired gains
-      [ -f "$RUNS52/legs8/config.json" ] || step predictor-v52-legs8
-      [ -f "$OUT51/models_legs7/mesh_predictor.onnx" ] || step check-legs-v51
-      choice_data "$DATA36C" "${LEGS[@]}"
-      legs_check "$OUT52" "$RUNS52/legs8" legs8 "$OUT36/models_twentyfirst" "$OUT51/models_legs7" ;;
+    data-v52|predictor-v52-legs8|check-legs-v52)  # the legged specialist's eighth round:
+      # bench, chair and table shapes 2750-3349 merged with DATA51 into DATA52, predictor-v51-legs7's run
+      # trained on along a new cosine into RUNS52/legs8, scored beside the twenty-first and the last round on
+      # the choice set into OUT52/check_legs: specialist_round
+      specialist_round "$1" legs 52 legs8 51 legs7 51 2750 ;;
     legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
     compact15-v52|eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52|gallery-compact15-v52|\
