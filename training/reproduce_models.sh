@@ -396,6 +396,9 @@ DATA52N=${DATA52N:-data/legs2750v4}  # the legged specialist's eighth round: ben
 DATA52=${DATA52:-data/legs3350v4}  # ... merged with DATA51
 OUT53=${OUT53:-out/v53}
 BUNDLE53=${BUNDLE53:-assets/models}  # the folder latency-, tradeoff- and docs-v53 measure
+RUNS53=${RUNS53:-runs/v53}
+DATA53N=${DATA53N:-data/legs3350newv4}  # the legged specialist's ninth round: bench, chair and table shapes 3350-3949 ...
+DATA53=${DATA53:-data/legs3950v4}  # ... merged with DATA52
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3432,6 +3435,13 @@ EOF
       # ship-compact15-v52 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT53
       bundle_round "${1%%-*}" "$BUNDLE53" "$OUT52/models_compact15" compact15-v52 "$OUT53" v53 ;;
+    data-v53|predictor-v53-legs9|check-legs-v53)  # the legged specialist's ninth round:
+      # bench, chair and table shapes 3350-3949 merged with DATA52 into DATA53, predictor-v52-legs8's run
+      # trained on along a new cosine into RUNS53/legs9, scored beside the twenty-first and the last round on
+      # the choice set into OUT53/check_legs: specialist_round
+      specialist_round "$1" legs 53 legs9 52 legs8 52 3350 ;;
+    legs9-v53)  # the legged specialist's ninth round (data, training, the choice set; about 2 hours on 2 cores)
+      for s2 in data-v53 predictor-v53-legs9 check-legs-v53; do step "$s2"; done ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
