@@ -3423,6 +3423,10 @@ EOF
       # trained on along a new cosine into RUNS52/legs8, scored beside the twenty-first and the last round on
       # the choice set into OUT52/check_legs: specialist_round
       specialist_round "$1" legs 52 legs8 51 legs7 51 2750 ;;
+    logs-v52)  # the seventh and eighth legged rounds' logs (log_summary: iterations, minutes over the sittings, the
+      # silhouette term at the start and the end)
+      log_summary "$RUNS51" legs7
+      log_summary "$RUNS52" legs8 ;;
     legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
     compact15-v52|eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52|gallery-compact15-v52|\
