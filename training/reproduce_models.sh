@@ -399,6 +399,8 @@ BUNDLE53=${BUNDLE53:-assets/models}  # the folder latency-, tradeoff- and docs-v
 RUNS53=${RUNS53:-runs/v53}
 DATA53N=${DATA53N:-data/legs3350newv4}  # the legged specialist's ninth round: bench, chair and table shapes 3350-3949 ...
 DATA53=${DATA53:-data/legs3950v4}  # ... merged with DATA52
+OUT54=${OUT54:-out/v54}
+BUNDLE54=${BUNDLE54:-assets/models}  # the folder latency-, tradeoff- and docs-v54 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3446,6 +3448,19 @@ EOF
       specialist_round "$1" legs 53 legs9 52 legs8 52 3350 ;;
     legs9-v53)  # the legged specialist's ninth round (data, training, the choice set; about 2 hours on 2 cores)
       for s2 in data-v53 predictor-v53-legs9 check-legs-v53; do step "$s2"; done ;;
+    compact16-v53|eval-compact16-clean-v53|eval-compact16-side-v53|eval-compact16-strong-v53|gallery-compact16-v53|\
+        legs9-route-v53|versus-v53|ship-compact16-v53)  # the legged specialist's ninth round (check-legs-v53) routed in a
+      # copy of OUT52/models_compact15 (compact16-v53), measured (legs9-route-v53), its figures (versus-v53), shipped
+      # (ship-compact16-v53): specialist_route
+      specialist_route "$1" v53 "$OUT53" compact16 "$OUT52" compact15 v52 "$OUT53/models_legs9" check-legs-v53 \
+        mesh_predictor_legged.onnx ;;
+    latency-bundle-v54|tradeoff-bundle-v54|docs-v54)  # BUNDLE54 [assets/models: the thirty-second bundle once
+      # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
+      # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54
+      bundle_round "${1%%-*}" "$BUNDLE54" "$OUT53/models_compact16" compact16-v53 "$OUT54" v54 ;;
+    logs-v53)  # the eighth and ninth legged rounds' logs (log_summary)
+      log_summary "$RUNS52" legs8
+      log_summary "$RUNS53" legs9 ;;
     latency-bundle-v51|tradeoff-bundle-v51|docs-v51)  # BUNDLE51 [assets/models: the twenty-ninth bundle once
       # ship-compact13-v50 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT51
