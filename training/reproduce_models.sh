@@ -3458,6 +3458,78 @@ EOF
       # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54
       bundle_round "${1%%-*}" "$BUNDLE54" "$OUT53/models_compact16" compact16-v53 "$OUT54" v54 ;;
+    mirror-output-v53)  # mirror averaging without the generator's second pass, an ad hoc variant against what the app runs
+      # (nothing shipped): the generator's image of the drawing flipped left to right as the flipped drawing's (its red
+      # channel, the view-frame x, mirrored as a - r with a the foreground coverage, hard (max channel > 0.02) or from the
+      # blue channel (min(1, 2 b)); without the mirroring of red as a check of the sign) against the app's mirror
+      # averaging and one pass; BUNDLE53's models on SAMPLES2 [156] clean test sketches of DATA36A, voxel IoU (the mean of
+      # the categories) and p50 time of each; into OUT53/mirror_output/mirror_output.json. Run it alone: it times
+      mkdir -p "$OUT53/mirror_output"
+      python3 - "$BUNDLE53" "$DATA36A" "$SAMPLES2" "$OUT53/mirror_output/mirror_output.json" <<'PY'
+import json, os, sys, time
+from collections import defaultdict
+from pathlib import Path
+import numpy as np
+from engine import contract as C
+from engine.icosphere import mirror_average
+from engine.mesh import Mesh
+from engine.pipeline import SketchEngine, _run_batch, assemble_mesh, downsample_normals
+from training.data.dataset import ShapeViewDataset
+from training.evaluation.evaluate import _pair_metrics, world_vertices
+from training.evaluation.metrics import solid_voxels
+models, data_dir, samples, out = sys.argv[1], Path(sys.argv[2]), int(sys.argv[3]), Path(sys.argv[4])
+data = ShapeViewDataset(data_dir, "test", extra_views=0, augment_strength=0.0)
+idx = np.unique(np.linspace(0, len(data) - 1, samples).round().astype(int))
+app = SketchEngine(models, threads=2, cache_size=0, mirror_average=True); app.load()
+one = SketchEngine(models, threads=2, cache_size=0, mirror_average=False); one.load()
+
+def flipped_image(n, mode):  # n: (1, 3, H, W) encoded normals of the drawing -> those of its mirror image
+    f = n[..., ::-1].copy()
+    a = (f.max(axis=1) > 0.02).astype(np.float32) if mode == "hard" else np.minimum(1.0, 2.0 * f[:, 2])
+    if mode != "no sign":
+        f[:, 0] = np.clip(a - f[:, 0], 0.0, 1.0)
+    return f
+
+def output_mirror(raster, mode):  # the app's _run_models with the flipped drawing's image made from the drawing's
+    (n,) = _run_batch(app._generator, [C.GENERATOR_OUTPUT], raster[None, None].astype(np.float32))
+    n = np.clip(n, 0.0, 1.0).astype(np.float32)
+    small = np.concatenate([downsample_normals(n), downsample_normals(flipped_image(n, mode))])
+    route, _ = app._route(small[:1])
+    p = app._specialist(route) if route is not None else app._predictor
+    local, glob = _run_batch(p, p.output_names, small)
+    m = [assemble_mesh(local[i:i + 1], glob[i:i + 1], p.template_level, p.template_radius) for i in range(2)]
+    return Mesh(mirror_average(m[0].vertices, m[1].vertices).astype(np.float32), m[0].faces)
+
+variants = {"the app's mirror averaging (the flipped drawing through both networks)": lambda sk, r: app.predict(sk).mesh,
+            "one pass": lambda sk, r: one.predict(sk).mesh,
+            "generator's image mirrored, coverage hard": lambda sk, r: output_mirror(r, "hard"),
+            "generator's image mirrored, coverage from blue": lambda sk, r: output_mirror(r, "blue"),
+            "generator's image mirrored, red not mirrored (the sign check)": lambda sk, r: output_mirror(r, "no sign")}
+gt, iou, ms = {}, defaultdict(lambda: defaultdict(list)), defaultdict(list)
+for i in idx:
+    it = data[int(i)]
+    sk, cam16 = it["sketch"][0].numpy(), it["camera"].numpy().astype(np.float64)
+    key = (it["category"], it["shape_id"])
+    if key not in gt:
+        mesh = data.load_mesh(*key)
+        gt[key] = (mesh, solid_voxels(mesh, 32, True))
+    raster = app.predict(sk).sketch  # also the warm-up of this drawing's route
+    for name, fn in variants.items():
+        t0 = time.perf_counter()
+        mesh = fn(sk, raster)
+        ms[name].append((time.perf_counter() - t0) * 1e3)
+        world = Mesh(world_vertices(np.asarray(mesh.vertices, np.float64), cam16), mesh.faces)
+        iou[name][it["category"]].append(_pair_metrics(world, gt[key][0], gt[key][1], 32, True)["voxel_iou"])
+rows = [{"variant": k, "voxel_iou": float(np.mean([np.mean(v) for v in iou[k].values()])),
+         "ms_p50": float(np.median(ms[k])), "ms_p90": float(np.percentile(ms[k], 90))} for k in variants]
+print(f"{len(idx)} clean test sketches, 2 threads:")
+for r in rows:
+    print(f"  {r['variant']}: voxel IoU {r['voxel_iou']:.4f}, {r['ms_p50']:.1f} ms p50 (p90 {r['ms_p90']:.1f})")
+tmp = out.with_suffix(".tmp")
+tmp.write_text(json.dumps({"models": models, "samples": len(idx), "rows": rows}, indent=1))
+os.replace(tmp, out)
+PY
+      ;;
     logs-v53)  # the eighth and ninth legged rounds' logs (log_summary)
       log_summary "$RUNS52" legs8
       log_summary "$RUNS53" legs9 ;;
