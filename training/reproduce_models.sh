@@ -3530,6 +3530,41 @@ tmp.write_text(json.dumps({"models": models, "samples": len(idx), "rows": rows},
 os.replace(tmp, out)
 PY
       ;;
+    profile-generator-v53)  # where the generator's time goes: BUNDLE53's generator.onnx in the engine's session options
+      # (2 threads) with onnxruntime's profiler, 25 runs of a batch of two sparse random drawings (the app's mirror
+      # batch), kernel time per operator type (ms a run, share, nodes); into OUT53/profile_generator.json. Run it alone
+      mkdir -p "$OUT53"
+      python3 - "$BUNDLE53/generator.onnx" "$OUT53/profile_generator.json" <<'PY'
+import collections, json, os, sys, tempfile
+import numpy as np
+import onnxruntime as ort
+from engine.models import _session_options
+path, out = sys.argv[1], sys.argv[2]
+runs = 25
+so = _session_options(2)
+so.enable_profiling = True
+so.profile_file_prefix = os.path.join(tempfile.mkdtemp(), "generator")
+session = ort.InferenceSession(path, sess_options=so, providers=["CPUExecutionProvider"])
+name = session.get_inputs()[0].name
+x = (np.random.default_rng(0).random((2, 1, 256, 256)) > 0.97).astype(np.float32)
+for _ in range(runs):
+    session.run(None, {name: x})
+events = json.load(open(session.end_profiling()))
+us, nodes = collections.Counter(), collections.Counter()
+for e in events:
+    if e.get("cat") == "Node" and e["name"].endswith("_kernel_time"):
+        us[e["args"]["op_name"]] += e["dur"]
+        nodes[e["args"]["op_name"]] += 1
+total = sum(us.values())
+rows = [{"op": op, "ms_per_run": t / runs / 1e3, "share": t / total, "nodes": nodes[op] // runs} for op, t in us.most_common()]
+print(f"{path}: {total / runs / 1e3:.1f} ms of kernels a run (batch of two, 2 threads)")
+for r in rows:
+    print(f"  {r['op']:24s} {r['ms_per_run']:6.2f} ms  {100 * r['share']:5.1f} %  {r['nodes']} nodes")
+with open(out + ".tmp", "w") as fh:
+    json.dump({"model": path, "runs": runs, "rows": rows}, fh, indent=1)
+os.replace(out + ".tmp", out)
+PY
+      ;;
     logs-v53)  # the eighth and ninth legged rounds' logs (log_summary)
       log_summary "$RUNS52" legs8
       log_summary "$RUNS53" legs9 ;;
