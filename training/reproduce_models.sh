@@ -532,8 +532,8 @@ legs_round() {  # the predictor run $1 trained on by the specialists' CPU recipe
   RECIPE_LR=${V36_LR:-2e-4} DATA20=$2 recipe20 "$1" "$3" "${V36_ITERS:-3000}" "${V36_MINUTES:-65}" 2
 }
 
-specialist_round() {  # step $1 (data-vN, predictor-vN-NAME or check-KIND-vN) of a specialist's round that trains the last
-  # round's run on along a new cosine: $2 the specialist (second: airplane, display and lamp, choice set DATA41C; third:
+specialist_round() {  # step $1 (data-vN, predictor-vN-NAME, check-KIND-vN, or NAME-vN: the three in order) of a
+  # specialist's round that trains the last round's run on along a new cosine: $2 the specialist (second: airplane, display and lamp, choice set DATA41C; third:
   # rifle, watercraft and sofa, DATA44C; legs: bench, chair and table, DATA36C), $3 the round's number (52) and $4 its
   # name (legs8), $5 the last round's number and $6 its name, $7 the number of the data it adds to (DATA$7, made by
   # data-v$7), $8 the first of the new shapes (600 a category, train split, 4 grid views each: DATA$3N, merged with DATA$7
@@ -567,6 +567,8 @@ specialist_round() {  # step $1 (data-vN, predictor-vN-NAME or check-KIND-vN) of
       else
         round_check "$out" "$runs/$name" "$name" "$choice" "check_$kind" "$OUT36/models_twentyfirst" "${earlier[@]}"
       fi ;;
+    "$name-v$n")  # the three in order (about 2 hours on 2 cores)
+      for s2 in "data-v$n" "predictor-v$n-$name" "check-$kind-v$n"; do step "$s2"; done ;;
     *) echo "specialist_round: no step $1 in round $n ($name)" >&2; return 2 ;;
   esac
 }
@@ -678,16 +680,18 @@ case_routes() {  # route_counts (ROUTE_GROUPS $1) of each case's eval of one rou
   done
 }
 
-specialist_route() {  # step $1 of a specialist's round $2 (v51) routed and measured as the bundle runs it: the folder
-  # $3/models_$4 is the bundle $5/models_$6 (made by step $6-$7) with the model folder $8's specialist (made by step $9,
-  # whose choice-set eval is $3/check_<kind>) stored as the bundle stores it as ${10}. Its steps: $4-$2 (that folder);
-  # eval-$4-<case>-$2 (every test sketch of the case beside $5/$6_<case>'s eval: both means, the paired difference, the
-  # three routes); gallery-$4-$2; <round>-route-$2 (these in order, clean first: about 30 min on 2 cores); versus-$2 (the
-  # choice set paired and per category, and each case's routes, from the JSONs written); ship-$4-$2 (the specialist into
-  # assets/models, the other files checked byte-equal)
-  local what=$1 tag=$2 out=$3 name=$4 pout=$5 prev=$6 ptag=$7 spec=$8 check=$9 file=${10} c
-  local check_dir=${check%-*}
-  check_dir=$out/${check_dir/-/_}
+specialist_route() {  # step $1 of the specialist $2's (second, third or legs) round $3 (53) named $4 (legs9: its model
+  # folder OUT$3/models_$4, made by check-$2-v$3, whose choice-set eval is OUT$3/check_$2) routed and measured as the
+  # bundle runs it: the folder OUT$3/models_$5 is the bundle OUT$6/models_$7 (made by step $7-v$6) with that specialist
+  # stored as the bundle stores it (mesh_predictor_$2.onnx; _legged for legs). Its steps, with tag = v$3: $5-tag (that
+  # folder); eval-$5-<case>-tag (every test sketch of the case beside OUT$6/$7_<case>'s eval: both means, the paired
+  # difference, the three routes); gallery-$5-tag; <round>-route-tag (these in order, clean first: about 30 min on 2
+  # cores); versus-tag (the choice set paired and per category, and each case's routes, from the JSONs written);
+  # ship-$5-tag (the specialist into assets/models, the other files checked byte-equal)
+  local what=$1 kind=$2 n=$3 round=$4 name=$5 p=$6 prev=$7 v c
+  v=OUT$n; local out=${!v}; v=OUT$p; local pout=${!v}
+  local tag=v$n ptag=v$p spec=$out/models_$round check=check-$kind-v$n check_dir=$out/check_$kind file
+  if [ "$kind" = legs ]; then file=mesh_predictor_legged.onnx; else file=mesh_predictor_$kind.onnx; fi
   case $what in
     "$name-$tag")
       [ -f "$spec/mesh_predictor.onnx" ] || step "$check"
@@ -2904,13 +2908,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # engine, mirror averaged, into OUT41/check_second; then its paired gain
       [ -f "$RUNS41/second/config.json" ] || step predictor-v41-second
       first_check "$RUNS41/second" "$DATA41C" "$OUT41" second "${SECOND[@]}" ;;
-    data-v42|predictor-v42-second2|check-second-v42)  # the second specialist's second round:
-      # airplane, display and lamp shapes 2150-2749 merged with DATA41 into DATA42, predictor-v41-second's run
-      # trained on along a new cosine into RUNS42/second2, scored beside the twenty-first and the last round on
-      # the choice set into OUT42/check_second: specialist_round
+    data-v42|predictor-v42-second2|check-second-v42|second2-v42)  # the second specialist's second round: specialist_round
       specialist_round "$1" second 42 second2 41 second 41 2150 ;;
-    second2-v42)  # the second specialist's second round: data-v42 predictor-v42-second2 check-second-v42 (about 45 min)
-      for s2 in data-v42 predictor-v42-second2 check-second-v42; do step "$s2"; done ;;
     router-second-v42)  # how the bundled router (router-v37's run) would route the second specialist's categories: its
       # accuracy and, per threshold, how many airplane, display and lamp drawings of DATA36L (529 unseen shapes, the train
       # split of shapes 1200-1249 of each category, x 4 views and their flipped drawings) it sends to a route of them and
@@ -2959,10 +2958,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # generator, predictor and legged specialist, checked byte-equal to its own
       [ -f "$OUT42/models_compact6/router.onnx" ] || step compact6-v42
       ship_files "$OUT42/models_compact6" router.onnx mesh_predictor_second.onnx ;;
-    data-v43|predictor-v43-second3|check-second-v43)  # the second specialist's third round:
-      # airplane, display and lamp shapes 2750-3349 merged with DATA42 into DATA43, predictor-v42-second2's run
-      # trained on along a new cosine into RUNS43/second3, scored beside the twenty-first and the earlier rounds on
-      # the choice set into OUT43/check_second: specialist_round
+    data-v43|predictor-v43-second3|check-second-v43)  # the second specialist's third round: specialist_round
       specialist_round "$1" second 43 second3 42 second2 42 2750 "$OUT41/models_second" "$OUT42/models_second2" ;;
     compact7-v43)  # models_routed6 with predictor-v43-second3's specialist as mesh_predictor_second.onnx (OUT43/models_routed7),
       # stored as the bundle is into OUT43/models_compact7; its other files checked byte-equal to models_compact6's
@@ -3076,13 +3072,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     docs-v44)  # the README's gallery and error-against-run-time plot, of BUNDLE44 (bundle_docs): OUT44/gallery_bundle*
       [ -f "$OUT44/tradeoff_bundle/tradeoff.png" ] || step tradeoff-bundle-v44
       bundle_docs "$BUNDLE44" "$OUT44/gallery_bundle" "$OUT44/tradeoff_bundle" ;;
-    data-v45|predictor-v45-third2|check-third-v45)  # the third specialist's second round:
-      # rifle, watercraft and sofa shapes 2150-2749 merged with DATA44 into DATA45, predictor-v44-third's run
-      # trained on along a new cosine into RUNS45/third2, scored beside the twenty-first and the last round on
-      # the choice set into OUT45/check_third: specialist_round
+    data-v45|predictor-v45-third2|check-third-v45|third2-v45)  # the third specialist's second round: specialist_round
       specialist_round "$1" third 45 third2 44 third 44 2150 ;;
-    third2-v45)  # the third specialist's second round: data-v45 predictor-v45-third2 check-third-v45 (about 50 min)
-      for s2 in data-v45 predictor-v45-third2 check-third-v45; do step "$s2"; done ;;
     compact9-v45)  # models_routed8 with predictor-v45-third2's specialist as mesh_predictor_third.onnx (OUT45/models_routed9),
       # stored as the bundle is into OUT45/models_compact9; its other files checked byte-equal to models_compact8's
       [ -f "$OUT45/models_third2/mesh_predictor.onnx" ] || step check-third-v45
@@ -3124,13 +3115,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # files checked byte-equal)
       [ -f "$OUT45/models_compact9/router.onnx" ] || step compact9-v45
       ship_files "$OUT45/models_compact9" mesh_predictor_third.onnx ;;
-    data-v46|predictor-v46-third3|check-third-v46)  # the third specialist's third round:
-      # rifle, watercraft and sofa shapes 2750-3349 merged with DATA45 into DATA46, predictor-v45-third2's run
-      # trained on along a new cosine into RUNS46/third3, scored beside the twenty-first and the earlier rounds on
-      # the choice set into OUT46/check_third: specialist_round
+    data-v46|predictor-v46-third3|check-third-v46|third3-v46)  # the third specialist's third round: specialist_round
       specialist_round "$1" third 46 third3 45 third2 45 2750 "$OUT44/models_third" "$OUT45/models_third2" ;;
-    third3-v46)  # the third specialist's third round: data-v46 predictor-v46-third3 check-third-v46 (about 50 min)
-      for s2 in data-v46 predictor-v46-third3 check-third-v46; do step "$s2"; done ;;
     bundle24-v47)  # the twenty-fourth bundle as shipped (git TWENTYFOURTH [3411188], its six files) into OUT47/models_bundle24,
       # and its third specialist beside the twenty-first's generator (git TWENTYFIRST [2a2eadb]) into
       # OUT47/models_bundle_third: on any machine, what the v47 steps start from (the runs of v44-v46 stayed on the machine
@@ -3203,13 +3189,8 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
     ship-compact10-v47)  # models_compact10's third specialist becomes the bundled one (the other files checked byte-equal)
       [ -f "$OUT47/models_compact10/router.onnx" ] || step compact10-v47
       ship_files "$OUT47/models_compact10" mesh_predictor_third.onnx ;;
-    data-v48|predictor-v48-third4|check-third-v48)  # the third specialist's fourth round:
-      # rifle, watercraft and sofa shapes 3350-3949 merged with DATA46 into DATA48, predictor-v47-third3's run
-      # trained on along a new cosine into RUNS48/third4, scored beside the twenty-first and the last round on
-      # the choice set into OUT48/check_third: specialist_round
+    data-v48|predictor-v48-third4|check-third-v48|third4-v48)  # the third specialist's fourth round: specialist_round
       specialist_round "$1" third 48 third4 47 third3 46 3350 ;;
-    third4-v48)  # the third specialist's fourth round (about 75 min on 2 cores after third3-v47)
-      for s2 in data-v48 predictor-v48-third4 check-third-v48; do step "$s2"; done ;;
     fast-v48)  # the twenty-fifth bundle (models_compact10) with its generator's decoder made sub-pixel convolutions
       # (engine.graph.subpixel_model: the same arithmetic in another order, checked within 1e-4 of the stored graph; its
       # weights stored as they were): OUT48/models_fast; the other files checked byte-equal
@@ -3335,19 +3316,12 @@ PY
         sketchmesh bench refine --data "$DATA36A" --models "$BUNDLE49" --max-samples "$SAMPLES2" --mirror-average \
           --steps 0 3 "${extra[@]}" --no-intersections --threads 2 --quiet --out "$OUT49/latency_$path"
       done ;;
-    data-v49|predictor-v49-third5|check-third-v49)  # the third specialist's fifth round:
-      # rifle, watercraft and sofa shapes 3950-4549 merged with DATA48 into DATA49, predictor-v48-third4's run
-      # trained on along a new cosine into RUNS49/third5, scored beside the twenty-first and the last round on
-      # the choice set into OUT49/check_third: specialist_round
+    data-v49|predictor-v49-third5|check-third-v49|third5-v49)  # the third specialist's fifth round: specialist_round
       specialist_round "$1" third 49 third5 48 third4 48 3950 ;;
-    third5-v49)  # the third specialist's fifth round (data, training, the choice set; about 2 hours on 2 cores)
-      for s2 in data-v49 predictor-v49-third5 check-third-v49; do step "$s2"; done ;;
     compact12-v49|eval-compact12-clean-v49|eval-compact12-side-v49|eval-compact12-strong-v49|gallery-compact12-v49|\
-        third5-route-v49|versus-v49|ship-compact12-v49)  # the third specialist's fifth round (check-third-v49) routed in a
-      # copy of OUT48/models_compact11 (compact12-v49), measured (third5-route-v49), its figures (versus-v49), shipped
-      # (ship-compact12-v49): specialist_route
-      specialist_route "$1" v49 "$OUT49" compact12 "$OUT48" compact11 v48 "$OUT49/models_third5" check-third-v49 \
-        mesh_predictor_third.onnx ;;
+        third5-route-v49|versus-v49|ship-compact12-v49)  # the third specialist's fifth round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" third 49 third5 compact12 48 compact11 ;;
     preprocess-v50)  # bench engine's stages (fp32, 2 threads, 60 runs of the bundled sample images: decoding, thinning and
       # the redraw with draw_segments are its preprocess stage) with the engine of commit BEFORE50 [f4b0db9: draw_segments
       # before it computed in place] and with today's, into OUT50/preprocess_before.json and _after.json, then both
@@ -3364,19 +3338,12 @@ for f in sys.argv[1:]:
           f"total p50 {r['total']['p50_ms']:.1f} ms, {r['preprocess']['sketches']} sketches")
 EOF
       ;;
-    data-v50|predictor-v50-third6|check-third-v50)  # the third specialist's sixth round:
-      # rifle, watercraft and sofa shapes 4550-5149 merged with DATA49 into DATA50, predictor-v49-third5's run
-      # trained on along a new cosine into RUNS50/third6, scored beside the twenty-first and the last round on
-      # the choice set into OUT50/check_third: specialist_round
+    data-v50|predictor-v50-third6|check-third-v50|third6-v50)  # the third specialist's sixth round: specialist_round
       specialist_round "$1" third 50 third6 49 third5 49 4550 ;;
-    third6-v50)  # the third specialist's sixth round (data, training, the choice set; about 2 hours on 2 cores)
-      for s2 in data-v50 predictor-v50-third6 check-third-v50; do step "$s2"; done ;;
     compact13-v50|eval-compact13-clean-v50|eval-compact13-side-v50|eval-compact13-strong-v50|gallery-compact13-v50|\
-        third6-route-v50|versus-v50|ship-compact13-v50)  # the third specialist's sixth round (check-third-v50) routed in a
-      # copy of OUT49/models_compact12 (compact13-v50), measured (third6-route-v50), its figures (versus-v50), shipped
-      # (ship-compact13-v50): specialist_route
-      specialist_route "$1" v50 "$OUT50" compact13 "$OUT49" compact12 v49 "$OUT50/models_third6" check-third-v50 \
-        mesh_predictor_third.onnx ;;
+        third6-route-v50|versus-v50|ship-compact13-v50)  # the third specialist's sixth round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" third 50 third6 compact13 49 compact12 ;;
     legged-v51)  # the bundled legged specialist (the sixth round's, int8-stored) beside the twenty-first's generator as a
       # model folder, OUT51/models_bundle_legged: what its seventh round starts from on a machine without its runs (the
       # v36-v40 runs stayed on the machine that trained them)
@@ -3411,49 +3378,33 @@ EOF
     legs7-v51)  # the legged specialist's seventh round (data, import, training, the choice set; about 3 hours on 2 cores)
       for s2 in legged-v51 data-v51 import-legs-v51 predictor-v51-legs7 check-legs-v51; do step "$s2"; done ;;
     compact14-v51|eval-compact14-clean-v51|eval-compact14-side-v51|eval-compact14-strong-v51|gallery-compact14-v51|\
-        legs7-route-v51|versus-v51|ship-compact14-v51)  # the legged specialist's seventh round (check-legs-v51) routed in a
-      # copy of OUT50/models_compact13 (compact14-v51), measured (legs7-route-v51), its figures (versus-v51), shipped
-      # (ship-compact14-v51): specialist_route
-      specialist_route "$1" v51 "$OUT51" compact14 "$OUT50" compact13 v50 "$OUT51/models_legs7" check-legs-v51 \
-        mesh_predictor_legged.onnx ;;
+        legs7-route-v51|versus-v51|ship-compact14-v51)  # the legged specialist's seventh round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" legs 51 legs7 compact14 50 compact13 ;;
     latency-bundle-v52|tradeoff-bundle-v52|docs-v52)  # BUNDLE52 [assets/models: the thirtieth bundle once
       # ship-compact14-v51 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT52
       bundle_round "${1%%-*}" "$BUNDLE52" "$OUT51/models_compact14" compact14-v51 "$OUT52" v52 ;;
-    data-v52|predictor-v52-legs8|check-legs-v52)  # the legged specialist's eighth round:
-      # bench, chair and table shapes 2750-3349 merged with DATA51 into DATA52, predictor-v51-legs7's run
-      # trained on along a new cosine into RUNS52/legs8, scored beside the twenty-first and the last round on
-      # the choice set into OUT52/check_legs: specialist_round
+    data-v52|predictor-v52-legs8|check-legs-v52|legs8-v52)  # the legged specialist's eighth round: specialist_round
       specialist_round "$1" legs 52 legs8 51 legs7 51 2750 ;;
     logs-v52)  # the seventh and eighth legged rounds' logs (log_summary: iterations, minutes over the sittings, the
       # silhouette term at the start and the end)
       log_summary "$RUNS51" legs7
       log_summary "$RUNS52" legs8 ;;
-    legs8-v52)  # the legged specialist's eighth round (data, training, the choice set; about 2 hours on 2 cores)
-      for s2 in data-v52 predictor-v52-legs8 check-legs-v52; do step "$s2"; done ;;
     compact15-v52|eval-compact15-clean-v52|eval-compact15-side-v52|eval-compact15-strong-v52|gallery-compact15-v52|\
-        legs8-route-v52|versus-v52|ship-compact15-v52)  # the legged specialist's eighth round (check-legs-v52) routed in a
-      # copy of OUT51/models_compact14 (compact15-v52), measured (legs8-route-v52), its figures (versus-v52), shipped
-      # (ship-compact15-v52): specialist_route
-      specialist_route "$1" v52 "$OUT52" compact15 "$OUT51" compact14 v51 "$OUT52/models_legs8" check-legs-v52 \
-        mesh_predictor_legged.onnx ;;
+        legs8-route-v52|versus-v52|ship-compact15-v52)  # the legged specialist's eighth round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" legs 52 legs8 compact15 51 compact14 ;;
     latency-bundle-v53|tradeoff-bundle-v53|docs-v53)  # BUNDLE53 [assets/models: the thirty-first bundle once
       # ship-compact15-v52 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT53
       bundle_round "${1%%-*}" "$BUNDLE53" "$OUT52/models_compact15" compact15-v52 "$OUT53" v53 ;;
-    data-v53|predictor-v53-legs9|check-legs-v53)  # the legged specialist's ninth round:
-      # bench, chair and table shapes 3350-3949 merged with DATA52 into DATA53, predictor-v52-legs8's run
-      # trained on along a new cosine into RUNS53/legs9, scored beside the twenty-first and the last round on
-      # the choice set into OUT53/check_legs: specialist_round
+    data-v53|predictor-v53-legs9|check-legs-v53|legs9-v53)  # the legged specialist's ninth round: specialist_round
       specialist_round "$1" legs 53 legs9 52 legs8 52 3350 ;;
-    legs9-v53)  # the legged specialist's ninth round (data, training, the choice set; about 2 hours on 2 cores)
-      for s2 in data-v53 predictor-v53-legs9 check-legs-v53; do step "$s2"; done ;;
     compact16-v53|eval-compact16-clean-v53|eval-compact16-side-v53|eval-compact16-strong-v53|gallery-compact16-v53|\
-        legs9-route-v53|versus-v53|ship-compact16-v53)  # the legged specialist's ninth round (check-legs-v53) routed in a
-      # copy of OUT52/models_compact15 (compact16-v53), measured (legs9-route-v53), its figures (versus-v53), shipped
-      # (ship-compact16-v53): specialist_route
-      specialist_route "$1" v53 "$OUT53" compact16 "$OUT52" compact15 v52 "$OUT53/models_legs9" check-legs-v53 \
-        mesh_predictor_legged.onnx ;;
+        legs9-route-v53|versus-v53|ship-compact16-v53)  # the legged specialist's ninth round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" legs 53 legs9 compact16 52 compact15 ;;
     latency-bundle-v54|tradeoff-bundle-v54|docs-v54)  # BUNDLE54 [assets/models: the thirty-second bundle once
       # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54
@@ -3631,11 +3582,9 @@ PY
       [ -f "$OUT48/models_fast/router.onnx" ] || step fast-v48
       ship_files "$OUT48/models_fast" generator.onnx ;;
     compact11-v48|eval-compact11-clean-v48|eval-compact11-side-v48|eval-compact11-strong-v48|gallery-compact11-v48|\
-        third4-route-v48|versus-v48|ship-compact11-v48)  # the third specialist's fourth round (check-third-v48) routed in a
-      # copy of OUT48/models_fast (compact11-v48), measured (third4-route-v48), its figures (versus-v48), shipped
-      # (ship-compact11-v48): specialist_route
-      specialist_route "$1" v48 "$OUT48" compact11 "$OUT48" fast v48 "$OUT48/models_third4" check-third-v48 \
-        mesh_predictor_third.onnx ;;
+        third4-route-v48|versus-v48|ship-compact11-v48)  # the third specialist's fourth round
+      # routed, measured and shipped: specialist_route
+      specialist_route "$1" third 48 third4 compact11 48 fast ;;
     latency-bundle-v48|tradeoff-bundle-v48|docs-v48)  # BUNDLE48 timed in the app's path (bundle_latency), its error against run
       # time (bundle_tradeoff; run these two alone) and the README's gallery and plot (bundle_docs), into OUT48
       bundle_round "${1%%-*}" "$BUNDLE48" "$OUT48/models_fast" fast-v48 "$OUT48" v48 ;;
