@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import io
 import logging
 import os
 import platform
@@ -86,6 +87,16 @@ def _mark_quantization(model, value: str) -> None:
     for k, v in meta.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = k, v
+
+
+def _mark_meta(model, key: str, value: str) -> None:
+    """In place: metadata ``key`` set to ``value``, the rest kept."""
+    for p in model.metadata_props:
+        if p.key == key:
+            p.value = value
+            return
+    entry = model.metadata_props.add()
+    entry.key, entry.value = key, value
 
 
 def _routed_files(models_dir: Path) -> list[Path]:
@@ -260,9 +271,140 @@ def compact_model(src: str | os.PathLike, dst: str | os.PathLike, *, require: bo
     return dst
 
 
+STATIC_PERCENTILE = 99.999
+"""Percentile of each convolution input's calibrated values that sets its int8 range (:func:`static_int8_generator`):
+the largest few of a million pixels clip instead of stretching every step."""
+
+
+def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibration: np.ndarray, *,
+                          keep_float: int = 1, percentile: float = STATIC_PERCENTILE) -> dict:
+    """The generator with its convolutions run in int8 (ONNX Runtime's QLinearConv): weights int8 per output
+    channel, each convolution's input quantised with a range calibrated on ``calibration``, everything else
+    (instance norms, activations, sub-pixel shuffles) float32.
+
+    The sub-pixel kernels the graph computes (:func:`engine.graph.fold_subpixel_kernels`) and int8- or float16-stored
+    weights (:func:`compact_model`) are made float32 initialisers first. The ``keep_float`` first and last
+    convolutions stay float32: the first reads the raw drawing, the last writes the colours, and both are cheap (4 and
+    60 of about 750 million multiply-adds at 256 x 256). Metadata is kept, ``quantization`` set to ``int8-static`` and
+    ``source_sha256`` to ``src``'s hash (the engine refuses an int8 file whose source is not the folder's generator).
+
+    Args:
+        src: a float generator (``generator.onnx``).
+        dst: where to write (atomically).
+        calibration: (N, 1, 256, 256) float32 drawings in [0, 1], N >= 1: training sketches, never test ones.
+        keep_float: how many convolutions at each end stay float32 (0 quantises all).
+        percentile: see :data:`STATIC_PERCENTILE`.
+
+    Returns:
+        ``{"quantized": convolutions in int8, "kept_float": names kept, "calibration": N,
+        "mean_abs": mean |int8 - float| of the output over the calibration drawings, "max_abs": its largest}``.
+
+    Raises:
+        MissingExtraError: the ``onnx`` package is not installed.
+        SketchInputError: calibration drawings of the wrong shape, non-finite or outside [0, 1].
+        ModelError: the file cannot be read, has no convolution to quantise, or the result does not load or gives
+            non-finite output.
+    """
+    try:
+        import onnx
+        from onnxruntime.quantization import (
+            CalibrationDataReader,
+            CalibrationMethod,
+            QuantFormat,
+            QuantType,
+            quantize_static,
+        )
+    except ImportError as exc:
+        raise MissingExtraError(f"int8 quantisation needs the onnx package ({exc}); pip install 'sketchmesh[dev]'") from None
+    import onnxruntime as ort
+
+    x = np.asarray(calibration)
+    s = C.SKETCH_SIZE
+    if x.ndim != 4 or x.shape[1:] != (1, s, s) or len(x) == 0:
+        raise SketchInputError(f"calibration drawings must be (N >= 1, 1, {s}, {s}), got {x.shape}")
+    x = x.astype(np.float32)
+    if not np.all(np.isfinite(x)) or x.min() < 0.0 or x.max() > 1.0:
+        raise SketchInputError("calibration drawings must be finite and lie in [0, 1]")
+    if keep_float < 0 or not 0.0 < percentile <= 100.0:
+        raise SketchInputError(f"keep_float must be >= 0 and percentile in (0, 100], got {keep_float}, {percentile}")
+    src, dst = Path(src), Path(dst)
+    try:
+        model = onnx.load(str(src))
+    except Exception as exc:  # noqa: BLE001 - protobuf raises several types on a broken file
+        raise ModelError(f"{src}: cannot read the ONNX model ({' '.join(str(exc).split())[:200]})") from None
+    meta = {p.key: p.value for p in model.metadata_props}
+    if meta.get(C.META_ROLE) != C.ROLE_GENERATOR:
+        raise ModelError(f"{src}: not a generator (role {meta.get(C.META_ROLE)!r})")
+    convs = [n.name for n in model.graph.node if n.op_type == "Conv"]
+    if len(convs) <= 2 * keep_float:
+        raise ModelError(f"{src}: {len(convs)} convolutions, none left to quantise with {keep_float} kept float at each end")
+    kept = convs[:keep_float] + (convs[len(convs) - keep_float:] if keep_float else [])
+    if len(set(convs)) != len(convs) or not all(convs):
+        raise ModelError(f"{src}: convolutions without unique names cannot be told apart")
+
+    class _Reader(CalibrationDataReader):
+        def __init__(self) -> None:
+            self._rows = iter(range(len(x)))
+
+        def get_next(self):
+            i = next(self._rows, None)
+            return None if i is None else {C.GENERATOR_INPUT: x[i:i + 1]}
+
+    root = logging.getLogger()
+    level = root.level
+    with tempfile.TemporaryDirectory(prefix="sketchmesh-static-") as tmp:
+        try:
+            del model.graph.value_info[:]
+            _float32_weights(model)
+            fold_subpixel_kernels(model)
+            plain = Path(tmp) / "float.onnx"
+            onnx.save(model, str(plain))
+            root.setLevel(logging.ERROR)  # quantize_static warns on the root logger about pre-processing
+            with contextlib.redirect_stdout(io.StringIO()):  # and its calibrator prints its progress
+                quantize_static(str(plain), str(Path(tmp) / "q.onnx"), _Reader(), quant_format=QuantFormat.QDQ,
+                                op_types_to_quantize=["Conv"], per_channel=True, activation_type=QuantType.QUInt8,
+                                weight_type=QuantType.QInt8, calibrate_method=CalibrationMethod.Percentile,
+                                nodes_to_exclude=kept, extra_options={"CalibPercentile": percentile})
+            q = onnx.load(str(Path(tmp) / "q.onnx"))
+        except Exception as exc:  # noqa: BLE001 - onnx / onnxruntime raise many types
+            raise ModelError(f"{src}: static int8 quantisation failed: {' '.join(str(exc).split())[:300]}") from None
+        finally:
+            root.setLevel(level)
+    del q.metadata_props[:]
+    for k, v in meta.items():
+        entry = q.metadata_props.add()
+        entry.key, entry.value = k, v
+    _mark_quantization(q, "int8-static")
+    from engine.models import file_sha256
+
+    _mark_meta(q, C.META_SOURCE_SHA256, file_sha256(src))
+    data = q.SerializeToString()
+    try:
+        fast = ort.InferenceSession(data, providers=["CPUExecutionProvider"])
+        ref = ort.InferenceSession(str(src), providers=["CPUExecutionProvider"])
+        got = np.concatenate([fast.run(None, {C.GENERATOR_INPUT: x[i:i + 8]})[0] for i in range(0, len(x), 8)])
+        want = np.concatenate([ref.run(None, {C.GENERATOR_INPUT: x[i:i + 8]})[0] for i in range(0, len(x), 8)])
+    except Exception as exc:  # noqa: BLE001 - onnxruntime raises many types
+        raise ModelError(f"{src}: the int8 generator does not run: {' '.join(str(exc).split())[:300]}") from None
+    if not np.all(np.isfinite(got)):
+        raise ModelError(f"{src}: the int8 generator gives NaN or inf on the calibration drawings")
+    dequantized = {n.output[0] for n in q.graph.node if n.op_type == "DequantizeLinear"}
+    done = sum(n.op_type == "Conv" and len(n.input) > 1 and n.input[1] in dequantized for n in q.graph.node)
+    if done == 0:
+        raise ModelError(f"{src}: static int8 quantisation left every convolution float32")
+    diff = np.abs(np.clip(got, 0, 1) - np.clip(want, 0, 1))
+    from engine.fileio import atomic_write_bytes
+
+    atomic_write_bytes(dst, data)
+    return {"quantized": done,
+            "kept_float": kept, "calibration": len(x), "mean_abs": float(diff.mean()), "max_abs": float(diff.max())}
+
+
 def folder_bytes(models_dir: Path) -> int:
-    """Bytes of the models a folder runs: the generator, the predictor, and a router with the specialists it names."""
-    return sum(f.stat().st_size for f in [*model_paths(models_dir), *_routed_files(models_dir)])
+    """Bytes of the models a folder holds for the engine: the generator (and its int8 form, where there is one), the
+    predictor, and a router with the specialists it names."""
+    fast = [models_dir / C.GENERATOR_INT8_FILE] if (models_dir / C.GENERATOR_INT8_FILE).is_file() else []
+    return sum(f.stat().st_size for f in [*model_paths(models_dir), *fast, *_routed_files(models_dir)])
 
 
 def split_variant(name: str) -> tuple[str, bool]:

@@ -27,7 +27,8 @@ Metadata (``metadata_props`` of each model, all strings)
     ``conventions`` (= CONVENTIONS_ID); the mesh predictor also carries
     ``template_level`` (e.g. "3") and ``template_radius``; the generator carries
     ``base_channels`` and ``generator_arch`` ("resize" or "pix2pix"; absent from exports that
-    predate the option, which are "pix2pix"). ``quantization`` ("none", "int8-dynamic", "fp16-weights" or "int8-weights") is optional.
+    predate the option, which are "pix2pix"). ``quantization`` ("none", "int8-dynamic", "fp16-weights", "int8-weights" or
+    "int8-static") is optional.
     The engine only reads the required keys and the predictor's template: the others describe the
     model (the graph itself is what runs) and may be absent.
 """
@@ -40,6 +41,11 @@ CONVENTIONS_ID = "sketchmesh-conventions-1"
 GENERATOR_FILE = "generator.onnx"
 PREDICTOR_FILE = "mesh_predictor.onnx"
 ROUTER_FILE = "router.onnx"
+GENERATOR_INT8_FILE = "generator_int8.onnx"
+"""Optional, beside ``generator.onnx``: the same generator with its convolutions in int8 and their inputs quantised
+with ranges calibrated on training sketches (:func:`engine.bench.static_int8_generator`). When a folder has it, the
+engine runs it in place of ``generator.onnx`` (which stays what training imports); its ``source_sha256`` must be the
+float file's, so a stale file is an error, never a silent mismatch."""
 
 SKETCH_SIZE = 256
 PREDICTOR_INPUT_SIZE = 64
@@ -69,6 +75,7 @@ META_QUANTIZATION = "quantization"
 META_CATEGORIES = "categories"
 META_ROUTES = "routes"
 META_ROUTE_THRESHOLD = "route_threshold"
+META_SOURCE_SHA256 = "source_sha256"
 PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8", "int8w")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,
 with both networks quantised, or with every network's large weights stored in int8 and computed in

@@ -9,6 +9,7 @@ what was wrong.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -241,6 +242,36 @@ def load_generator(path: str | os.PathLike, threads: int | None = None) -> Loade
     _check_static(path, f"input {C.GENERATOR_INPUT!r}", ins[C.GENERATOR_INPUT], [None, 1, s, s])
     _check_static(path, f"output {C.GENERATOR_OUTPUT!r}", outs[C.GENERATOR_OUTPUT], [None, 3, s, s])
     return LoadedModel(path, C.ROLE_GENERATOR, sess, meta, C.GENERATOR_INPUT, [C.GENERATOR_OUTPUT], input_shapes=ins, output_shapes=outs)
+
+
+def file_sha256(path: Path) -> str:
+    """Hex SHA-256 of a file's bytes (a generator's identity for the int8 file made from it)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def load_runtime_generator(models_dir: Path, threads: int | None = None) -> LoadedModel:
+    """The generator the engine runs from a folder: ``generator_int8.onnx`` when the folder has one (checked to be
+    made from the folder's ``generator.onnx``: its ``source_sha256``), else ``generator.onnx``.
+
+    Raises:
+        ModelError: a missing folder or file, a model that fails validation, or an int8 file made from another
+        generator (stale: remake or delete it).
+    """
+    gen, _ = model_paths(models_dir)
+    fast = models_dir / C.GENERATOR_INT8_FILE
+    if not fast.is_file():
+        return load_generator(gen, threads)
+    model = load_generator(fast, threads)
+    want, have = model.metadata.get(C.META_SOURCE_SHA256, ""), file_sha256(gen)
+    if want != have:
+        raise ModelError(f"{fast} was not made from {gen} (its {C.META_SOURCE_SHA256} is {want[:12] or 'missing'}, "
+                         f"the file's {have[:12]}): remake it with `sketchmesh quantize-generator {models_dir} --data "
+                         "DATASET` or delete it to run the float generator")
+    return model
 
 
 def load_predictor(path: str | os.PathLike, threads: int | None = None) -> LoadedModel:

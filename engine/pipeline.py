@@ -51,9 +51,9 @@ from engine.mesh import Mesh
 from engine.models import (
     LoadedModel,
     default_threads,
-    load_generator,
     load_predictor,
     load_router,
+    load_runtime_generator,
     model_paths,
     resolve_models_dir,
     router_path,
@@ -309,9 +309,9 @@ class SketchEngine:
         with self._load_lock:
             if self._generator is not None and self._predictor is not None:
                 return
-            gen_path, pred_path = model_paths(self._models_dir)
+            _, pred_path = model_paths(self._models_dir)
             import engine.postprocess  # noqa: F401  refinement's self-intersection check: its scipy import stays out of the first prediction
-            generator = load_generator(gen_path, self._threads)
+            generator = load_runtime_generator(self._models_dir, self._threads)
             predictor = load_predictor(pred_path, self._threads)
             rpath = router_path(self._models_dir)
             self._router = load_router(rpath, self._threads) if rpath is not None else None
