@@ -42,10 +42,11 @@ EXPORT_SUFFIX = ".glb"
 """Format timed by the ``export`` stage (the app's default export)."""
 
 
-def _float32_weights(model) -> None:
+def _float32_weights(model, only: set[str] | None = None) -> None:
     """In place: weights stored in float16 behind a ``Cast`` to float32 (``sketchmesh export --quantize fp16``), or in
     int8 behind a ``Cast`` and a ``Mul`` by their scales (:func:`compact_model`), become float32 initialisers again, so
-    that quantisation finds the weights where it looks for them."""
+    that quantisation finds the weights where it looks for them; with ``only``, just the weights of those names (the
+    others stay stored as they were)."""
     from onnx import TensorProto, numpy_helper
 
     graph = model.graph
@@ -56,20 +57,22 @@ def _float32_weights(model) -> None:
         for i in n.input:
             users[i] = users.get(i, 0) + 1
     values: dict[str, np.ndarray] = {}  # float32 values of the stored weights' node outputs
-    drop_nodes, drop_inits = [], set()
+    chains: dict[str, tuple[list, set]] = {}  # each value's nodes and initialisers, dropped when it becomes one
     for n in graph.node:
         if (n.op_type == "Cast" and len(n.input) == 1 and n.input[0] in inits and users.get(n.input[0]) == 1
                 and inits[n.input[0]].data_type in (TensorProto.FLOAT16, TensorProto.INT8)
                 and any(a.name == "to" and a.i == TensorProto.FLOAT for a in n.attribute)):
             values[n.output[0]] = numpy_helper.to_array(inits[n.input[0]]).astype(np.float32)
-            drop_nodes.append(n)
-            drop_inits.add(n.input[0])
+            chains[n.output[0]] = ([n], {n.input[0]})
         elif (n.op_type == "Mul" and len(n.input) == 2 and n.input[0] in values and users.get(n.input[0]) == 1
               and n.input[1] in inits and users.get(n.input[1]) == 1
               and inits[n.input[1]].data_type == TensorProto.FLOAT):
             values[n.output[0]] = values.pop(n.input[0]) * numpy_helper.to_array(inits[n.input[1]])
-            drop_nodes.append(n)
-            drop_inits.add(n.input[1])
+            nodes, names = chains.pop(n.input[0])
+            chains[n.output[0]] = (nodes + [n], names | {n.input[1]})
+    values = {k: v for k, v in values.items() if only is None or k in only}
+    drop_nodes = [n for k in values for n in chains[k][0]]
+    drop_inits = set().union(*(chains[k][1] for k in values))
     for n in drop_nodes:
         graph.node.remove(n)
     kept = [i for i in graph.initializer if i.name not in drop_inits]
@@ -87,6 +90,25 @@ def _mark_quantization(model, value: str) -> None:
     for k, v in meta.items():
         entry = model.metadata_props.add()
         entry.key, entry.value = k, v
+
+
+def _conv_pixels(model, convs: list, x: np.ndarray) -> dict[str, int]:
+    """Output pixels (height x width) of each Conv node of ``convs`` on the input ``x``, run with those outputs
+    exposed (a copy of ``model``)."""
+    import onnxruntime as ort
+    from onnx import helper
+
+    probe = type(model)()
+    probe.CopyFrom(model)
+    del probe.graph.value_info[:]
+    names = [n.output[0] for n in convs]
+    probe.graph.output.extend(helper.make_empty_tensor_value_info(o) for o in names)
+    try:
+        session = ort.InferenceSession(probe.SerializeToString(), providers=["CPUExecutionProvider"])
+        outs = session.run(names, {C.GENERATOR_INPUT: x})
+    except Exception as exc:  # noqa: BLE001 - onnxruntime raises many types
+        raise ModelError(f"the generator does not run on a calibration drawing: {' '.join(str(exc).split())[:300]}") from None
+    return {n.name: int(np.prod(o.shape[2:])) for n, o in zip(convs, outs)}
 
 
 def _mark_meta(model, key: str, value: str) -> None:
@@ -275,25 +297,34 @@ STATIC_PERCENTILE = 99.999
 """Percentile of each convolution input's calibrated values that sets its int8 range (:func:`static_int8_generator`):
 the largest few of a million pixels clip instead of stretching every step."""
 
+STATIC_MIN_PIXELS = 256
+"""A convolution is run in int8 by :func:`static_int8_generator` only if its output has at least this many pixels (16 x
+16): the small-image ones near the U-Net's bottom hold most of the weights and little of the arithmetic, and stay
+stored as they were (a sub-pixel kernel in int8 would take four times its source's bytes)."""
+
 
 def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibration: np.ndarray, *,
-                          keep_float: int = 1, percentile: float = STATIC_PERCENTILE) -> dict:
-    """The generator with its convolutions run in int8 (ONNX Runtime's QLinearConv): weights int8 per output
-    channel, each convolution's input quantised with a range calibrated on ``calibration``, everything else
+                          keep_float: int = 1, percentile: float = STATIC_PERCENTILE,
+                          min_pixels: int = STATIC_MIN_PIXELS) -> dict:
+    """The generator with its large-image convolutions run in int8 (ONNX Runtime's QLinearConv): weights int8 per
+    output channel, each convolution's input quantised with a range calibrated on ``calibration``, everything else
     (instance norms, activations, sub-pixel shuffles) float32.
 
-    The sub-pixel kernels the graph computes (:func:`engine.graph.fold_subpixel_kernels`) and int8- or float16-stored
-    weights (:func:`compact_model`) are made float32 initialisers first. The ``keep_float`` first and last
-    convolutions stay float32: the first reads the raw drawing, the last writes the colours, and both are cheap (4 and
-    60 of about 750 million multiply-adds at 256 x 256). Metadata is kept, ``quantization`` set to ``int8-static`` and
-    ``source_sha256`` to ``src``'s hash (the engine refuses an int8 file whose source is not the folder's generator).
+    Those convolutions' weights, computed in the graph as sub-pixel kernels (:func:`engine.graph.fold_subpixel_kernels`)
+    or stored in int8 or float16 (:func:`compact_model`), are made float32 initialisers first. The ``keep_float`` first
+    and last convolutions stay float32: the first reads the raw drawing, the last writes the colours, and both are cheap
+    (4 and 60 of about 750 million multiply-adds at 256 x 256); so do those with fewer than ``min_pixels`` output
+    pixels (:data:`STATIC_MIN_PIXELS`), measured on the first drawing. Metadata is kept, ``quantization`` set to
+    ``int8-static`` and ``source_sha256`` to ``src``'s hash (the engine refuses an int8 file whose source is not the
+    folder's generator).
 
     Args:
         src: a float generator (``generator.onnx``).
         dst: where to write (atomically).
         calibration: (N, 1, 256, 256) float32 drawings in [0, 1], N >= 1: training sketches, never test ones.
-        keep_float: how many convolutions at each end stay float32 (0 quantises all).
+        keep_float: how many convolutions at each end stay float32 (0: none on that account).
         percentile: see :data:`STATIC_PERCENTILE`.
+        min_pixels: see :data:`STATIC_MIN_PIXELS` (0: every convolution not kept at the ends).
 
     Returns:
         ``{"quantized": convolutions in int8, "kept_float": names kept, "calibration": N,
@@ -325,8 +356,9 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     x = x.astype(np.float32)
     if not np.all(np.isfinite(x)) or x.min() < 0.0 or x.max() > 1.0:
         raise SketchInputError("calibration drawings must be finite and lie in [0, 1]")
-    if keep_float < 0 or not 0.0 < percentile <= 100.0:
-        raise SketchInputError(f"keep_float must be >= 0 and percentile in (0, 100], got {keep_float}, {percentile}")
+    if keep_float < 0 or min_pixels < 0 or not 0.0 < percentile <= 100.0:
+        raise SketchInputError(f"keep_float and min_pixels must be >= 0 and percentile in (0, 100], got {keep_float}, "
+                               f"{min_pixels}, {percentile}")
     src, dst = Path(src), Path(dst)
     try:
         model = onnx.load(str(src))
@@ -335,12 +367,17 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     meta = {p.key: p.value for p in model.metadata_props}
     if meta.get(C.META_ROLE) != C.ROLE_GENERATOR:
         raise ModelError(f"{src}: not a generator (role {meta.get(C.META_ROLE)!r})")
-    convs = [n.name for n in model.graph.node if n.op_type == "Conv"]
-    if len(convs) <= 2 * keep_float:
-        raise ModelError(f"{src}: {len(convs)} convolutions, none left to quantise with {keep_float} kept float at each end")
-    kept = convs[:keep_float] + (convs[len(convs) - keep_float:] if keep_float else [])
+    nodes = [n for n in model.graph.node if n.op_type == "Conv"]
+    convs = [n.name for n in nodes]
     if len(set(convs)) != len(convs) or not all(convs):
         raise ModelError(f"{src}: convolutions without unique names cannot be told apart")
+    pixels = _conv_pixels(model, nodes, x[:1])
+    kept = [c for i, c in enumerate(convs)
+            if i < keep_float or i >= len(convs) - keep_float or pixels[c] < min_pixels]
+    if len(kept) == len(convs):
+        raise ModelError(f"{src}: {len(convs)} convolutions, none left to quantise with {keep_float} kept float at each "
+                         f"end and {min_pixels} output pixels at least")
+    weights = {i for n in nodes if n.name not in kept for i in n.input[1:]}
 
     class _Reader(CalibrationDataReader):
         def __init__(self) -> None:
@@ -355,8 +392,8 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     with tempfile.TemporaryDirectory(prefix="sketchmesh-static-") as tmp:
         try:
             del model.graph.value_info[:]
-            _float32_weights(model)
-            fold_subpixel_kernels(model)
+            _float32_weights(model, only=weights)
+            fold_subpixel_kernels(model, only=weights)
             plain = Path(tmp) / "float.onnx"
             onnx.save(model, str(plain))
             root.setLevel(logging.ERROR)  # quantize_static warns on the root logger about pre-processing

@@ -209,15 +209,15 @@ def _subpixel(model) -> int:
     return done
 
 
-def fold_subpixel_kernels(model) -> int:
+def fold_subpixel_kernels(model, only: set[str] | None = None) -> int:
     """In place: the kernels and biases :func:`subpixel_model` computes in the graph become float32 initialisers (what
     ONNX Runtime folds them to at load), for tools that look for a Conv's weight among the initialisers (dynamic int8
-    quantisation). Returns how many tensors were folded."""
+    quantisation); with ``only``, just the tensors of those names. Returns how many tensors were folded."""
     from onnx import TensorProto, numpy_helper
 
     graph = model.graph
     made = {o for n in graph.node for o in n.output}
-    names = [o for o in made if o.endswith(("__subpixel_weight", "__subpixel_bias"))]
+    names = sorted(o for o in made if o.endswith(("__subpixel_weight", "__subpixel_bias")) and (only is None or o in only))
     if not names:
         return 0
     values = _probe(model, dict.fromkeys(names, TensorProto.FLOAT))

@@ -399,6 +399,7 @@ BUNDLE53=${BUNDLE53:-assets/models}  # the folder latency-, tradeoff- and docs-v
 RUNS53=${RUNS53:-runs/v53}
 DATA53N=${DATA53N:-data/legs3350newv4}  # the legged specialist's ninth round: bench, chair and table shapes 3350-3949 ...
 DATA53=${DATA53:-data/legs3950v4}  # ... merged with DATA52
+DATACAL=${DATACAL:-data/calib100v4}  # calibration drawings of the int8 generator: 8 shapes a category from 9000 on, train
 OUT54=${OUT54:-out/v54}
 BUNDLE54=${BUNDLE54:-assets/models}  # the folder latency-, tradeoff- and docs-v54 measure
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -3399,12 +3400,54 @@ EOF
       # ship-compact15-v52 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT53
       bundle_round "${1%%-*}" "$BUNDLE53" "$OUT52/models_compact15" compact15-v52 "$OUT53" v53 ;;
+    data-calib-v53)  # DATACAL: the train split of 8 procedural shapes a category (13 categories) from shape 9000 on, 4 views
+      # each at 30 degrees: drawings the test split never holds, to calibrate the int8 generator's ranges; resumes
+      sketchmesh data --source procedural --shapes-per-category 8 --first-shape 9000 --views-per-shape 4 --splits train \
+        --workers 2 --out "$DATACAL" ;;
+    int8gen-v53)  # the thirty-first bundle (models_compact15) with its generator's convolutions in int8 beside it
+      # (quantize-generator: static, calibrated on 96 DATACAL drawings, half strongly augmented; the first and last
+      # convolutions and those under 16 x 16 pixels as stored), which the engine runs in place of generator.onnx:
+      # OUT53/models_int8gen; the other files checked byte-equal
+      [ -f "$OUT52/models_compact15/router.onnx" ] || step compact15-v52
+      [ -f "$DATACAL/manifest.json" ] || step data-calib-v53
+      rm -rf "$OUT53/models_int8gen"; mkdir -p "$OUT53/models_int8gen"
+      cp "$OUT52/models_compact15/"*.onnx "$OUT53/models_int8gen/"
+      sketchmesh quantize-generator "$OUT53/models_int8gen" --data "$DATACAL"
+      same_except "$OUT53/models_int8gen" "$OUT52/models_compact15" generator_int8.onnx ;;
+    eval-int8gen-clean-v53|eval-int8gen-side-v53|eval-int8gen-strong-v53)  # models_int8gen on every test sketch of the
+      # case beside the thirty-first bundle's eval (eval-compact15-<case>-v52): both means, the paired difference, routes
+      local c=${1#eval-int8gen-}; c=${c%-v53}
+      [ -f "$OUT53/models_int8gen/generator_int8.onnx" ] || step int8gen-v53
+      [ -f "$OUT52/compact15_$c/eval_models_test.json" ] || step "eval-compact15-$c-v52"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT53/models_int8gen" "$OUT53/int8gen_$c" \
+        "$OUT52/compact15_$c/eval_models_test.json" ;;
+    gallery-int8gen-v53)
+      [ -f "$OUT53/models_int8gen/generator_int8.onnx" ] || step int8gen-v53
+      route_gallery "$OUT53/models_int8gen" "$OUT53/gallery_int8gen" ;;
+    int8gen-route-v53)  # the int8 generator made and measured on every test sketch (about 25 min on 2 cores)
+      for s2 in int8gen-v53 eval-int8gen-clean-v53 eval-int8gen-side-v53 eval-int8gen-strong-v53 gallery-int8gen-v53; do
+        step "$s2"
+      done ;;
+    latency-int8gen-v53)  # the app's path timed (bundle_latency; run it alone) for models_compact15 and then
+      # models_int8gen, back to back, into OUT53/latency_compact15 and OUT53/latency_int8gen; then each folder's stages
+      # (bench engine, fp32 and fp32+mirror, 60 runs) into OUT53/stages_<name>.json
+      [ -f "$OUT53/models_int8gen/generator_int8.onnx" ] || step int8gen-v53
+      local f d
+      for f in compact15 int8gen; do
+        d="$OUT53/models_$f"; [ "$f" = compact15 ] && d="$OUT52/models_compact15"
+        bundle_latency "$d" "$OUT53/latency_$f"
+        sketchmesh bench engine --models "$d" --variants fp32,fp32+mirror --runs 60 --threads 2 \
+          --json "$OUT53/stages_$f.json"
+      done ;;
+    ship-int8gen-v53)  # models_int8gen's generator_int8.onnx into assets/models (the other files checked byte-equal)
+      [ -f "$OUT53/models_int8gen/generator_int8.onnx" ] || step int8gen-v53
+      ship_files "$OUT53/models_int8gen" generator_int8.onnx ;;
     data-v53|predictor-v53-legs9|check-legs-v53|legs9-v53)  # the legged specialist's ninth round: specialist_round
       specialist_round "$1" legs 53 legs9 52 legs8 52 3350 ;;
     compact16-v53|eval-compact16-clean-v53|eval-compact16-side-v53|eval-compact16-strong-v53|gallery-compact16-v53|\
         legs9-route-v53|versus-v53|ship-compact16-v53)  # the legged specialist's ninth round
       # routed, measured and shipped: specialist_route
-      specialist_route "$1" legs 53 legs9 compact16 52 compact15 ;;
+      specialist_route "$1" legs 53 legs9 compact16 53 int8gen ;;  # on the bundle with the int8 generator
     latency-bundle-v54|tradeoff-bundle-v54|docs-v54)  # BUNDLE54 [assets/models: the thirty-second bundle once
       # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54

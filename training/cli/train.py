@@ -315,7 +315,7 @@ def _cmd_quantize_generator(args: argparse.Namespace) -> int:
     if not Path(args.data).is_dir():
         raise ModelError(f"--data {args.data}: dataset folder does not exist")
     r = quantize_generator(models_folder(args.models), args.data, count=args.drawings, split=args.split,
-                           keep_float=args.keep_float)
+                           keep_float=args.keep_float, min_pixels=args.min_pixels)
     print(f"wrote {r['path']} ({r['bytes']:,} bytes): {r['quantized']} convolutions in int8, "
           f"{len(r['kept_float'])} kept float32; on the {r['calibration']} calibration drawings the output moves by "
           f"{r['mean_abs']:.4f} on average (largest {r['max_abs']:.3f}, in [0, 1] colour units)")
@@ -457,7 +457,8 @@ def register(commands, bench) -> None:
         "(generator_int8.onnx), calibrated on training sketches; the engine then runs it",
         description="Static int8 quantisation of MODELS/generator.onnx: weights int8 per channel, each convolution's "
         "input quantised with a range calibrated on --drawings sketches of --data's --split (half as drawn, half "
-        "with strong hand-drawn augmentation); the first and last convolutions stay float32. Written as "
+        "with strong hand-drawn augmentation); the first and last convolutions and those on images under 16 x 16 "
+        "stay float32. Written as "
         "MODELS/generator_int8.onnx, which the engine runs in place of generator.onnx (kept for training).",
     )
     p.add_argument("models", metavar="MODELS", help="models folder holding generator.onnx")
@@ -467,6 +468,8 @@ def register(commands, bench) -> None:
                    help="calibration drawings (default 96)")
     p.add_argument("--keep-float", type=int_in(0, 8), default=1, metavar="K",
                    help="convolutions at each end kept float32 (default 1)")
+    p.add_argument("--min-pixels", type=int_in(0, 65536), default=256, metavar="N",
+                   help="convolutions with fewer output pixels stay as stored (default 256: 16 x 16)")
     p.set_defaults(func=_cmd_quantize_generator)
     one_line_errors(p)
 
