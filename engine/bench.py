@@ -92,23 +92,33 @@ def _mark_quantization(model, value: str) -> None:
         entry.key, entry.value = k, v
 
 
-def _conv_pixels(model, convs: list, x: np.ndarray) -> dict[str, int]:
-    """Output pixels (height x width) of each Conv node of ``convs`` on the input ``x``, run with those outputs
-    exposed (a copy of ``model``)."""
+def _conv_pixels(model, convs: list, x: np.ndarray) -> dict[str, tuple[int, int]]:
+    """(output pixels (height x width), multiply-adds) of each Conv node of ``convs`` on the input ``x``, run with
+    their inputs and outputs exposed (a copy of ``model``)."""
     import onnxruntime as ort
     from onnx import helper
 
     probe = type(model)()
     probe.CopyFrom(model)
     del probe.graph.value_info[:]
-    names = [n.output[0] for n in convs]
-    probe.graph.output.extend(helper.make_empty_tensor_value_info(o) for o in names)
+    names = [n.output[0] for n in convs] + [n.input[0] for n in convs]
+    known = {o.name for o in probe.graph.output} | {i.name for i in probe.graph.input}
+    names = list(dict.fromkeys(names))
+    probe.graph.output.extend(helper.make_empty_tensor_value_info(o) for o in names if o not in known)
     try:
         session = ort.InferenceSession(probe.SerializeToString(), providers=["CPUExecutionProvider"])
         outs = session.run(names, {C.GENERATOR_INPUT: x})
     except Exception as exc:  # noqa: BLE001 - onnxruntime raises many types
         raise ModelError(f"the generator does not run on a calibration drawing: {' '.join(str(exc).split())[:300]}") from None
-    return {n.name: int(np.prod(o.shape[2:])) for n, o in zip(convs, outs)}
+    shapes = dict(zip(names, (o.shape for o in outs)))
+    result = {}
+    for n in convs:
+        attrs = {a.name: helper.get_attribute_value(a) for a in n.attribute}
+        out, inp = shapes[n.output[0]], shapes[n.input[0]]
+        pixels = int(np.prod(out[2:]))
+        taps = int(np.prod(attrs.get("kernel_shape", [1])))
+        result[n.name] = (pixels, pixels * int(out[1]) * int(inp[1]) // int(attrs.get("group", 1)) * taps)
+    return result
 
 
 def _mark_meta(model, key: str, value: str) -> None:
@@ -327,7 +337,8 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
         min_pixels: see :data:`STATIC_MIN_PIXELS` (0: every convolution not kept at the ends).
 
     Returns:
-        ``{"quantized": convolutions in int8, "kept_float": names kept, "calibration": N,
+        ``{"quantized": convolutions in int8, "macs": the convolutions' multiply-adds a drawing (a sub-pixel kernel's
+        zero taps counted), "macs_int8": those of the int8 ones, "kept_float": names kept, "calibration": N,
         "mean_abs": mean |int8 - float| of the output over the calibration drawings, "max_abs": its largest}``.
 
     Raises:
@@ -373,7 +384,7 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
         raise ModelError(f"{src}: convolutions without unique names cannot be told apart")
     pixels = _conv_pixels(model, nodes, x[:1])
     kept = [c for i, c in enumerate(convs)
-            if i < keep_float or i >= len(convs) - keep_float or pixels[c] < min_pixels]
+            if i < keep_float or i >= len(convs) - keep_float or pixels[c][0] < min_pixels]
     if len(kept) == len(convs):
         raise ModelError(f"{src}: {len(convs)} convolutions, none left to quantise with {keep_float} kept float at each "
                          f"end and {min_pixels} output pixels at least")
@@ -433,7 +444,8 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     from engine.fileio import atomic_write_bytes
 
     atomic_write_bytes(dst, data)
-    return {"quantized": done,
+    macs = sum(m for _, m in pixels.values())
+    return {"quantized": done, "macs": macs, "macs_int8": sum(m for c, (_, m) in pixels.items() if c not in kept),
             "kept_float": kept, "calibration": len(x), "mean_abs": float(diff.mean()), "max_abs": float(diff.max())}
 
 

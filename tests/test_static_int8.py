@@ -64,6 +64,8 @@ def test_the_convolutions_are_int8_and_the_output_stays_close(int8_folder):
     assert convs[0] not in weights_int8 and convs[-1] not in weights_int8
     assert [c.name.split("/")[1] for c in weights_int8] == ["down.1", "down.2", "down.3", "up.4", "up.5", "up.6"]
     assert (folder / C.GENERATOR_INT8_FILE).stat().st_size < 1.5 * (folder / C.GENERATOR_FILE).stat().st_size
+    # the first convolution alone: 16 kernels of 4 x 4 taps over one channel at 128 x 128 outputs
+    assert report["macs"] - report["macs_int8"] > 16 * 16 * 128 * 128 and 0.5 < report["macs_int8"] / report["macs"] < 0.9
     init = {i.name: i for i in model.graph.initializer}
     w = init[dq[weights_int8[0].input[1]].input[0]]
     scale = init[dq[weights_int8[0].input[1]].input[1]]

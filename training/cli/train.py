@@ -316,7 +316,8 @@ def _cmd_quantize_generator(args: argparse.Namespace) -> int:
         raise ModelError(f"--data {args.data}: dataset folder does not exist")
     r = quantize_generator(models_folder(args.models), args.data, count=args.drawings, split=args.split,
                            keep_float=args.keep_float, min_pixels=args.min_pixels)
-    print(f"wrote {r['path']} ({r['bytes']:,} bytes): {r['quantized']} convolutions in int8, "
+    print(f"wrote {r['path']} ({r['bytes']:,} bytes): {r['quantized']} convolutions in int8 ({r['macs_int8'] / 1e6:.0f} "
+          f"of the {r['macs'] / 1e6:.0f} million multiply-adds of a drawing), "
           f"{len(r['kept_float'])} left as stored (float32 arithmetic); on the {r['calibration']} calibration drawings "
           f"the output moves by {r['mean_abs']:.4f} on average (largest {r['max_abs']:.3f}, in [0, 1] colour units)")
     return 0
