@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.fileio import atomic_write_bytes, atomic_write_text
+from engine.models import file_sha256
 from training.data.dataset import DatasetError, load_manifest
 
 GENERATED_DIR = "generated"
@@ -63,12 +64,6 @@ def generated_dir(root: str | os.PathLike, name: str) -> Path:
     return Path(root) / ".cache" / GENERATED_DIR / name
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _save_done(folder: Path, done: np.ndarray) -> None:
@@ -237,7 +232,7 @@ def build_generated(root: str | os.PathLike, models_dir: str | os.PathLike, name
     arrays = open_mesh_cache(root, manifest)
     n_rows = int(arrays.normals64.shape[0])
     small = int(arrays.normals64.shape[1])
-    info = {"format": FORMAT, "generator": str(gen_path.resolve()), "generator_sha256": _sha256(gen_path),
+    info = {"format": FORMAT, "generator": str(gen_path.resolve()), "generator_sha256": file_sha256(gen_path),
             "augment_strength": float(augment_strength), "seed": int(seed), "rows": n_rows, "small_size": small,
             "row_files": hashlib.sha256(json.dumps(sorted(arrays.rows.items())).encode()).hexdigest(),
             "mirror": bool(mirror)}
@@ -323,7 +318,7 @@ def _same_file(a: Path, b: Path) -> bool:
     try:
         if os.path.samefile(a, b):
             return True
-        return a.stat().st_size == b.stat().st_size and _sha256(a) == _sha256(b)
+        return a.stat().st_size == b.stat().st_size and file_sha256(a) == file_sha256(b)
     except OSError:
         return False
 
