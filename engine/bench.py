@@ -92,7 +92,7 @@ def _mark_quantization(model, value: str) -> None:
         entry.key, entry.value = k, v
 
 
-def _conv_pixels(model, convs: list, x: np.ndarray) -> dict[str, tuple[int, int]]:
+def _conv_sizes(model, convs: list, x: np.ndarray) -> dict[str, tuple[int, int]]:
     """(output pixels (height x width), multiply-adds) of each Conv node of ``convs`` on the input ``x``, run with
     their inputs and outputs exposed (a copy of ``model``)."""
     import onnxruntime as ort
@@ -382,7 +382,7 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     convs = [n.name for n in nodes]
     if len(set(convs)) != len(convs) or not all(convs):
         raise ModelError(f"{src}: convolutions without unique names cannot be told apart")
-    pixels = _conv_pixels(model, nodes, x[:1])
+    pixels = _conv_sizes(model, nodes, x[:1])
     kept = [c for i, c in enumerate(convs)
             if i < keep_float or i >= len(convs) - keep_float or pixels[c][0] < min_pixels]
     if len(kept) == len(convs):
@@ -418,14 +418,11 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
             raise ModelError(f"{src}: static int8 quantisation failed: {' '.join(str(exc).split())[:300]}") from None
         finally:
             root.setLevel(level)
-    del q.metadata_props[:]
-    for k, v in meta.items():
-        entry = q.metadata_props.add()
-        entry.key, entry.value = k, v
-    _mark_quantization(q, "int8-static")
     from engine.models import file_sha256
 
-    _mark_meta(q, C.META_SOURCE_SHA256, file_sha256(src))
+    del q.metadata_props[:]  # the source's metadata, marked as what it now is
+    for k, v in {**meta, C.META_QUANTIZATION: "int8-static", C.META_SOURCE_SHA256: file_sha256(src)}.items():
+        _mark_meta(q, k, v)
     data = q.SerializeToString()
     try:
         fast = ort.InferenceSession(data, providers=["CPUExecutionProvider"])

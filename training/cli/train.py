@@ -16,6 +16,7 @@ from pathlib import Path
 from engine.cliutil import check_output_dir, float_in, int_in, one_line_errors, run_guarded, unit_float
 from engine.errors import ModelError, SketchmeshError
 from training.cli.bench import voxel_centres_flag
+from training.export.static_int8 import CALIBRATION_DRAWINGS
 
 # flags handled explicitly (positional mode, short names) rather than generated from the dataclass
 _EXPLICIT = {"mode", "data_dir", "out_dir"}
@@ -465,12 +466,13 @@ def register(commands, bench) -> None:
     p.add_argument("models", metavar="MODELS", help="models folder holding generator.onnx")
     p.add_argument("--data", required=True, metavar="DIR", help="dataset whose sketches calibrate the ranges")
     p.add_argument("--split", choices=("train", "val"), default="train")
-    p.add_argument("--drawings", type=int_in(2, 10_000), default=96, metavar="N",
-                   help="calibration drawings (default 96)")
+    p.add_argument("--drawings", type=int_in(2, 10_000), default=CALIBRATION_DRAWINGS, metavar="N",
+                   help=f"calibration drawings (default {CALIBRATION_DRAWINGS})")
     p.add_argument("--keep-float", type=int_in(0, 8), default=1, metavar="K",
                    help="convolutions at each end kept float32 (default 1)")
-    p.add_argument("--min-pixels", type=int_in(0, 65536), default=256, metavar="N",
-                   help="convolutions with fewer output pixels stay as stored (default 256: 16 x 16)")
+    p.add_argument("--min-pixels", type=int_in(0, 65536), default=None, metavar="N",
+                   help="convolutions with fewer output pixels stay as stored (default: engine.bench.STATIC_MIN_PIXELS, "
+                   "16 x 16)")
     p.set_defaults(func=_cmd_quantize_generator)
     one_line_errors(p)
 

@@ -64,8 +64,6 @@ def generated_dir(root: str | os.PathLike, name: str) -> Path:
     return Path(root) / ".cache" / GENERATED_DIR / name
 
 
-
-
 def _save_done(folder: Path, done: np.ndarray) -> None:
     buf = io.BytesIO()
     np.save(buf, done)

@@ -48,15 +48,17 @@ def calibration_drawings(data_dir: str | Path, count: int = CALIBRATION_DRAWINGS
 
 
 def quantize_generator(models_dir: str | Path, data_dir: str | Path, *, count: int = CALIBRATION_DRAWINGS,
-                       split: str = "train", keep_float: int = 1, min_pixels: int = 256) -> dict:
+                       split: str = "train", keep_float: int = 1, min_pixels: int | None = None) -> dict:
     """Write ``models_dir/generator_int8.onnx`` from ``models_dir/generator.onnx``; returns
-    :func:`engine.bench.static_int8_generator`'s report with ``path`` and ``bytes`` added."""
-    from engine.bench import static_int8_generator
+    :func:`engine.bench.static_int8_generator`'s report with ``path`` and ``bytes`` added (``min_pixels`` None:
+    :data:`engine.bench.STATIC_MIN_PIXELS`)."""
+    from engine.bench import STATIC_MIN_PIXELS, static_int8_generator
     from engine.models import model_paths
 
     models_dir = Path(models_dir)
     gen, _ = model_paths(models_dir)
     x = calibration_drawings(data_dir, count, split=split)
     dst = models_dir / C.GENERATOR_INT8_FILE
-    report = static_int8_generator(gen, dst, x, keep_float=keep_float, min_pixels=min_pixels)
+    report = static_int8_generator(gen, dst, x, keep_float=keep_float,
+                                   min_pixels=STATIC_MIN_PIXELS if min_pixels is None else min_pixels)
     return {**report, "path": str(dst), "bytes": dst.stat().st_size}
