@@ -402,6 +402,9 @@ DATA53=${DATA53:-data/legs3950v4}  # ... merged with DATA52
 DATACAL=${DATACAL:-data/calib100v4}  # calibration drawings of the int8 generator: 8 shapes a category from 9000 on, train
 OUT54=${OUT54:-out/v54}
 BUNDLE54=${BUNDLE54:-assets/models}  # the folder latency-, tradeoff- and docs-v54 measure
+RUNS54=${RUNS54:-runs/v54}
+DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
+DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
 COMPACT40_EVAL=${COMPACT40_EVAL:-$OUT40/route5}  # ... and the prefix of its eval-route folders (<prefix>_clean, ...)
 BIG_ARCH="--predictor-channels 64 --predictor-hidden 1024"  # the larger predictor's size (gpu_predictor.sh's ARCH)
@@ -3452,6 +3455,15 @@ EOF
       # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54
       bundle_round "${1%%-*}" "$BUNDLE54" "$OUT53/models_compact16" compact16-v53 "$OUT54" v54 ;;
+    data-v54|predictor-v54-legs10|check-legs-v54|legs10-v54)  # the legged specialist's tenth round: specialist_round
+      # (run in a session of 180 minutes with V36_ITERS=2400 V36_MINUTES=75: about 67 minutes alone at 0.6 iterations a s)
+      specialist_round "$1" legs 54 legs10 53 legs9 53 3950 ;;
+    compact17-v54|eval-compact17-clean-v54|eval-compact17-side-v54|eval-compact17-strong-v54|gallery-compact17-v54|\
+        legs10-route-v54|versus-v54|ship-compact17-v54)  # the legged specialist's tenth round routed, measured and
+      # shipped on the thirty-third bundle: specialist_route
+      specialist_route "$1" legs 54 legs10 compact17 53 compact16 ;;
+    logs-v54)  # the tenth legged round's log (log_summary)
+      log_summary "$RUNS54" legs10 ;;
     mirror-output-v53)  # mirror averaging without the generator's second pass, an ad hoc variant against what the app runs
       # (nothing shipped): the generator's image of the drawing flipped left to right as the flipped drawing's (its red
       # channel, the view-frame x, mirrored as a - r with a the foreground coverage, hard (max channel > 0.02) or from the
