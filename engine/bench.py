@@ -382,9 +382,9 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     convs = [n.name for n in nodes]
     if len(set(convs)) != len(convs) or not all(convs):
         raise ModelError(f"{src}: convolutions without unique names cannot be told apart")
-    pixels = _conv_sizes(model, nodes, x[:1])
+    sizes = _conv_sizes(model, nodes, x[:1])
     kept = [c for i, c in enumerate(convs)
-            if i < keep_float or i >= len(convs) - keep_float or pixels[c][0] < min_pixels]
+            if i < keep_float or i >= len(convs) - keep_float or sizes[c][0] < min_pixels]
     if len(kept) == len(convs):
         raise ModelError(f"{src}: {len(convs)} convolutions, none left to quantise with {keep_float} kept float at each "
                          f"end and {min_pixels} output pixels at least")
@@ -441,8 +441,8 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
     from engine.fileio import atomic_write_bytes
 
     atomic_write_bytes(dst, data)
-    macs = sum(m for _, m in pixels.values())
-    return {"quantized": done, "macs": macs, "macs_int8": sum(m for c, (_, m) in pixels.items() if c not in kept),
+    macs = sum(m for _, m in sizes.values())
+    return {"quantized": done, "macs": macs, "macs_int8": sum(m for c, (_, m) in sizes.items() if c not in kept),
             "kept_float": kept, "calibration": len(x), "mean_abs": float(diff.mean()), "max_abs": float(diff.max())}
 
 

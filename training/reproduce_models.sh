@@ -3455,9 +3455,9 @@ EOF
       # ship-compact16-v53 has run] timed in the app's path (bundle_latency), its error against run time (bundle_tradeoff;
       # run these two alone) and the README's gallery and plot (bundle_docs), into OUT54
       bundle_round "${1%%-*}" "$BUNDLE54" "$OUT53/models_compact16" compact16-v53 "$OUT54" v54 ;;
-    data-v54|predictor-v54-legs10|check-legs-v54|legs10-v54)  # the legged specialist's tenth round: specialist_round
-      # (run in a session of 180 minutes with V36_ITERS=2400 V36_MINUTES=75: about 67 minutes alone at 0.6 iterations a s)
-      specialist_round "$1" legs 54 legs10 53 legs9 53 3950 ;;
+    data-v54|predictor-v54-legs10|check-legs-v54|legs10-v54)  # the legged specialist's tenth round: specialist_round,
+      # 2,400 iterations [V36_ITERS] and 75 minutes at most [V36_MINUTES] to fit one session (about 66 minutes alone)
+      V36_ITERS=${V36_ITERS:-2400} V36_MINUTES=${V36_MINUTES:-75} specialist_round "$1" legs 54 legs10 53 legs9 53 3950 ;;
     compact17-v54|eval-compact17-clean-v54|eval-compact17-side-v54|eval-compact17-strong-v54|gallery-compact17-v54|\
         legs10-route-v54|versus-v54|ship-compact17-v54)  # the legged specialist's tenth round routed, measured and
       # shipped on the thirty-third bundle: specialist_route
