@@ -217,6 +217,9 @@ def test_cli_errors_are_one_line_and_nonzero(setup, trained, tmp_path):
         (["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")], "does not exist"),
         (["train", "--data", str(train), "--out", str(tmp_path / "r"), "--group", "box"], "give --val-data"),
         (["eval", str(run), "--data", str(val), "--group", "sofa"], "sofa: not among"),
+        (["train", "--data", str(train), "--out", str(tmp_path / "r"), "--channels", "0"], "must be in [1, 1024]"),
+        (["train", "--data", str(train), "--out", str(tmp_path / "r"), "--weight-decay=-1"], "finite number >= 0"),
+        (["train", "--data", str(train), "--out", str(tmp_path / "r"), "--weight-decay", "nan"], "finite number >= 0"),
     ]
     for args, match in cases:
         r = _cli(*args)
@@ -224,3 +227,13 @@ def test_cli_errors_are_one_line_and_nonzero(setup, trained, tmp_path):
         assert match in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)
     r = _cli("eval", str(run), "--data", str(val), "--group", "box")
     assert r.returncode == 0 and "category right for" in r.stdout, r.stderr
+
+
+def test_cli_trains_the_router_of_the_given_widths(setup, tmp_path):
+    train, val, _ = setup
+    r = _cli("train", "--data", str(train), "--val-data", str(val), "--out", str(tmp_path / "wide"), "--epochs", "2",
+             "--batch", "8", "--channels", "4", "8", "8", "12", "--weight-decay", "0", "--quiet", "--threads", "1")
+    assert r.returncode == 0, r.stderr
+    net, cfg = load_router_run(tmp_path / "wide")
+    assert cfg.channels == [4, 8, 8, 12] and cfg.weight_decay == 0.0 and net.channels == (4, 8, 8, 12)
+    assert net.head.in_features == 12 * 4  # the last width, pooled to 2 x 2

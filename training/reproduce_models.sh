@@ -403,6 +403,8 @@ DATACAL=${DATACAL:-data/calib100v4}  # calibration drawings of the int8 generato
 OUT54=${OUT54:-out/v54}
 BUNDLE54=${BUNDLE54:-assets/models}  # the folder latency-, tradeoff- and docs-v54 measure
 RUNS54=${RUNS54:-runs/v54}
+OUT55=${OUT55:-out/v55}
+BUNDLE55=${BUNDLE55:-assets/models}  # the bundle whose routing oracle-v55 measures (the thirty-fourth)
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -1122,6 +1124,78 @@ for name in sys.argv[2:]:
           f"first 100: silhouette term {sil0:.4f}, normal error {nrm0:.1f}; last 1,000: silhouette term {sil:.4f}, "
           f"normal error {nrm:.1f}; {len(ends)} sitting(s), {sum(ends) / 60:.1f} min in all")
 EOF
+}
+
+subset_data() {  # a dataset $2 (replaced) holding the shapes and views of the dataset $1 of the categories $3... alone:
+  # its manifest filtered, its category folders linked (absolute), nothing copied
+  rm -rf "$2"; mkdir -p "$2/shapes"
+  python3 - "$1" "$2" "${@:3}" <<'PY'
+import json, os, sys
+from pathlib import Path
+src, dst, cats = Path(sys.argv[1]).resolve(), Path(sys.argv[2]), set(sys.argv[3:])
+m = json.load(open(src / "manifest.json"))
+missing = cats - set(m["categories"])
+if missing:
+    sys.exit(f"subset_data: {src} has no category {sorted(missing)}")
+m["categories"] = [c for c in m["categories"] if c in cats]
+m["shapes"] = [r for r in m["shapes"] if r["category"] in cats]
+m["views"] = [r for r in m["views"] if r["category"] in cats]
+for c in m["categories"]:
+    os.symlink(src / "shapes" / c, dst / "shapes" / c)
+tmp = dst / "manifest.json.tmp"
+tmp.write_text(json.dumps(m))
+os.replace(tmp, dst / "manifest.json")
+print(f"{dst}: {len(m['shapes'])} shapes, {len(m['views'])} views of {', '.join(m['categories'])}")
+PY
+}
+
+route_oracle() {  # a routed folder's eval JSON $1 (mirror only) and, for each route, "FILE=EVAL_JSON" $2...: the eval of
+  # that route's predictor alone on its categories' drawings (the same views): the 13-category mean as routed, and as an
+  # oracle router would route (every drawing of a route's categories to it, the others as routed), +- one standard
+  # error over the test shapes, the paired difference, per category, and how much of it the missed drawings hold
+  python3 - "$@" <<'PY'
+import json, sys
+from collections import defaultdict
+res = json.load(open(sys.argv[1])); col = res["columns"][0]
+only = {}  # (category, shape, view) -> iou of the route's predictor alone
+cats_of = {}
+for arg in sys.argv[2:]:
+    name, path = arg.split("=", 1)
+    r2 = json.load(open(path)); c2 = r2["columns"][0]
+    for r in r2["rows"]:
+        cats_of[r["category"]] = name
+        for v in r["per_view"]:
+            only[(r["category"], r["shape_id"], v["view"])] = v["iou"][c2]
+routed, oracle = defaultdict(list), defaultdict(list)
+missed = defaultdict(lambda: [0, 0, 0.0])  # category -> [drawings, missed, summed gain on the missed]
+for r in res["rows"]:
+    cat = r["category"]
+    a, b = [], []
+    for v in r["per_view"]:
+        x = v["iou"][col]; y = x
+        if cat in cats_of:
+            key = (cat, r["shape_id"], v["view"])
+            if key not in only:
+                sys.exit(f"route_oracle: {key} has no score from {cats_of[cat]}'s eval")
+            y = only[key]
+            missed[cat][0] += 1
+            if v["routes"][col]["route"] != cats_of[cat]:
+                missed[cat][1] += 1; missed[cat][2] += y - x
+        a.append(x); b.append(y)
+    routed[cat].append(sum(a) / len(a)); oracle[cat].append(sum(b) / len(b))
+def mean_se(per):
+    m = sum(sum(x) / len(x) for x in per.values()) / len(per)
+    v = sum(sum((y - sum(x) / len(x)) ** 2 for y in x) / (len(x) - 1) / len(x) for x in per.values() if len(x) > 1)
+    return m, v ** 0.5 / len(per)
+diff = {c: [o - r for o, r in zip(oracle[c], routed[c])] for c in routed}
+for label, per in (("as routed", routed), ("oracle routing", oracle), ("oracle minus routed (paired)", diff)):
+    m, se = mean_se(per)
+    print(f"{label}: {m:+.4f} +- {se:.4f} over {len(per)} categories")
+for c in sorted(missed):
+    n, k, g = missed[c]
+    print(f"  {c} -> {cats_of[c]}: {sum(routed[c]) / len(routed[c]):.3f} routed, {sum(oracle[c]) / len(oracle[c]):.3f} "
+          f"oracle; {k} of {n} drawings missed, the route's predictor {g / max(k, 1):+.3f} on them on average")
+PY
 }
 
 step() {
@@ -3464,6 +3538,45 @@ EOF
       specialist_route "$1" legs 54 legs10 compact17 53 compact16 ;;
     logs-v54)  # the tenth legged round's log (log_summary)
       log_summary "$RUNS54" legs10 ;;
+    data-v55)  # the router's drawings on a new machine: DATA36L (its validation, as route-v36 renders it) and DATA37 with
+      # the fifth generator's images of both (data-v37); resumes
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
+        --views-per-shape 4 --splits train --workers 2 --out "$DATA36L"
+      step data-v37 ;;
+    eval-bundle-clean-v55|eval-bundle-side-v55|eval-bundle-strong-v55)  # BUNDLE55 on every test sketch of the case
+      # (route_eval) into OUT55/bundle_<case>, and where its router sent the drawings
+      local c=${1#eval-bundle-}; c=${c%-v55}
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE55" "$OUT55/bundle_$c" ;;
+    only-legs-clean-v55|only-second-clean-v55|only-third-clean-v55|only-legs-side-v55|only-second-side-v55|\
+        only-third-side-v55|only-legs-strong-v55|only-second-strong-v55|only-third-strong-v55)  # one of BUNDLE55's
+      # specialists alone (OUT55/models_only_<kind>: the bundle's generator files and the specialist as mesh_predictor.onnx,
+      # no router) on every test sketch of its own categories (subset_data of DATA36A) in the case, as route_eval
+      # measures: what an oracle router would get there, into OUT55/only_<kind>_<case>
+      local k=${1#only-} c f cats; k=${k%-v55}; c=${k#*-}; k=${k%%-*}
+      case $k in
+        legs) f=mesh_predictor_legged.onnx; cats=("${LEGS[@]}") ;;
+        second) f=mesh_predictor_second.onnx; cats=("${SECOND[@]}") ;;
+        third) f=mesh_predictor_third.onnx; cats=("${THIRD[@]}") ;;
+      esac
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      subset_data "$DATA36A" "data/test100e4_$k" "${cats[@]}"
+      rm -rf "$OUT55/models_only_$k"; mkdir -p "$OUT55/models_only_$k"
+      cp "$BUNDLE55"/generator*.onnx "$OUT55/models_only_$k/"
+      cp "$BUNDLE55/$f" "$OUT55/models_only_$k/mesh_predictor.onnx"
+      DATA36A="data/test100e4_$k" route_eval "$c" "$OUT55/models_only_$k" "$OUT55/only_${k}_$c" ;;
+    oracle-clean-v55|oracle-side-v55|oracle-strong-v55)  # how much a perfect router would add to BUNDLE55 in the case: its
+      # routed eval against every drawing of a specialist's categories sent to that specialist (route_oracle; about 11 +
+      # 9 minutes on 2 cores clean, a quarter of that side)
+      local c=${1#oracle-} k; c=${c%-v55}
+      [ -f "$OUT55/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v55"
+      for k in legs second third; do
+        [ -f "$OUT55/only_${k}_$c/eval_models_test.json" ] || step "only-$k-$c-v55"
+      done
+      route_oracle "$OUT55/bundle_$c/eval_models_test.json" \
+        "mesh_predictor_legged.onnx=$OUT55/only_legs_$c/eval_models_test.json" \
+        "mesh_predictor_second.onnx=$OUT55/only_second_$c/eval_models_test.json" \
+        "mesh_predictor_third.onnx=$OUT55/only_third_$c/eval_models_test.json" | tee "$OUT55/oracle_$c.txt" ;;
     mirror-output-v53)  # mirror averaging without the generator's second pass, an ad hoc variant against what the app runs
       # (nothing shipped): the generator's image of the drawing flipped left to right as the flipped drawing's (its red
       # channel, the view-frame x, mirrored as a - r with a the foreground coverage, hard (max channel > 0.02) or from the

@@ -52,7 +52,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.group and not args.val_data:
         raise RouterArgsError("--group reports routing on --val-data: give --val-data DIR too")
     cfg = RouterConfig(data=list(args.data), inputs=list(args.inputs), val_data=args.val_data, epochs=args.epochs,
-                       batch=args.batch, lr=args.lr, shift=args.shift, seed=args.seed)
+                       batch=args.batch, lr=args.lr, shift=args.shift, seed=args.seed, channels=list(args.channels),
+                       weight_decay=args.weight_decay)
     try:
         last = train_router(args.out, cfg, resume=args.resume, progress=not args.quiet, group=args.group or None)
     except ValueError as exc:  # another router's checkpoint, --no-resume on a run, an unknown --group category
@@ -116,6 +117,17 @@ def _open_unit(text: str) -> float:
     return t
 
 
+def _non_negative(text: str) -> float:
+    """A finite number >= 0 (a weight decay)."""
+    try:
+        t = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= t < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return t
+
+
 def register(commands, bench) -> None:
     """Add ``router`` (train, eval, export) to the top-level sub-parsers."""
     p = commands.add_parser(
@@ -138,6 +150,9 @@ def register(commands, bench) -> None:
     t.add_argument("--batch", type=int_in(1, 65_536), default=128)
     t.add_argument("--lr", type=_open_unit, default=2e-3)
     t.add_argument("--shift", type=int_in(0, 16), default=3, help="random shift in pixels (default 3)")
+    t.add_argument("--channels", type=int_in(1, 1024), nargs="+", default=[16, 32, 48, 64], metavar="C",
+                   help="the stride-2 convolutions' widths (default 16 32 48 64: about 50,000 parameters)")
+    t.add_argument("--weight-decay", type=_non_negative, default=1e-4, help="AdamW weight decay (default 1e-4)")
     t.add_argument("--seed", type=int_in(0, 2**31 - 1), default=0)
     t.add_argument("--group", nargs="+", metavar="CATEGORY", help="report routing to these categories on --val-data")
     t.add_argument("--resume", action=argparse.BooleanOptionalAction, default=True)
