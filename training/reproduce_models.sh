@@ -404,7 +404,8 @@ OUT54=${OUT54:-out/v54}
 BUNDLE54=${BUNDLE54:-assets/models}  # the folder latency-, tradeoff- and docs-v54 measure
 RUNS54=${RUNS54:-runs/v54}
 OUT55=${OUT55:-out/v55}
-BUNDLE55=${BUNDLE55:-assets/models}  # the bundle whose routing oracle-v55 measures (the thirty-fourth)
+RUNS55=${RUNS55:-runs/v55}
+BUNDLE55=${BUNDLE55:-out/v55/models_bundle34}  # the thirty-fourth bundle (bundle34-v55), whose routing the v55 steps measure
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -1146,6 +1147,46 @@ tmp = dst / "manifest.json.tmp"
 tmp.write_text(json.dumps(m))
 os.replace(tmp, dst / "manifest.json")
 print(f"{dst}: {len(m['shapes'])} shapes, {len(m['views'])} views of {', '.join(m['categories'])}")
+PY
+}
+
+router_table() {  # the routers of the model folders $2... on the dataset $1's generated images (ROUTER_TABLE_INPUTS
+  # [normals16 normals16_mirror], every train row): category accuracy and, per threshold, each route's recall and false routes
+  # (as the engine routes: the route whose categories' summed probability is largest and above the threshold), and the
+  # expected gain on the 13-category mean, each route's categories' share x ROUTE_GAINS's gain of a drawing sent to its
+  # specialist x recall - the other categories' share x 0.21 (what another drawing loses there, route-v36) x false
+  # routes. ROUTE_GAINS ["legged=0.113 second=0.140 third=0.110": what the bundle's specialists gain on the clean test
+  # drawings its router missed, oracle-clean-v55]
+  ROUTER_TABLE_INPUTS=${ROUTER_TABLE_INPUTS:-normals16 normals16_mirror} python3 - "$@" <<'PY'
+import os, sys
+import numpy as np
+from engine.models import load_router
+from training.model.router import labelled_rows
+gains = dict(kv.split("=") for kv in os.environ.get("ROUTE_GAINS", "legged=0.113 second=0.140 third=0.110").split())
+data, folders = sys.argv[1], sys.argv[2:]
+for folder in folders:
+    r = load_router(os.path.join(folder, "router.onnx"), 2)
+    sets, _, cats = labelled_rows(data, os.environ["ROUTER_TABLE_INPUTS"].split(), "train", r.categories)
+    x = np.concatenate([g.rows(rows) for g, rows, _ in sets]).astype(np.float32)
+    y = np.concatenate([lab for _, _, lab in sets])
+    probs = np.concatenate([r.session.run(None, {r.input_name: x[i:i + 256]})[0] for i in range(0, len(x), 256)])
+    print(f"{folder}/router.onnx: {len(y)} drawings of {data}, category right {np.mean(probs.argmax(1) == y):.3f}")
+    names = list(r.routes)
+    sums = np.stack([probs[:, [cats.index(c) for c in r.routes[n]]].sum(1) for n in names], 1)
+    truth = np.full(len(y), -1)
+    for k, n in enumerate(names):
+        truth[np.isin(y, [cats.index(c) for c in r.routes[n]])] = k
+    for t in (0.5, 0.6, 0.7, 0.8, 0.9, 0.95):
+        best = np.where(sums.max(1) > t, sums.argmax(1), -1)
+        gain, parts = 0.0, []
+        for k, n in enumerate(names):
+            mine, others = truth == k, truth != k
+            recall, false = np.mean(best[mine] == k), np.mean(best[others] == k)
+            share = len(r.routes[n]) / len(cats)
+            key = next((g for g in gains if g in n), None)
+            gain += share * float(gains[key]) * recall - (1 - share) * 0.21 * false
+            parts.append(f"{n.removeprefix('mesh_predictor_').removesuffix('.onnx')} {recall:.3f} / {false:.4f}")
+        print(f"  threshold {t:.2f}: recall / false routes {'; '.join(parts)}; expected gain {gain:+.4f}")
 PY
 }
 
@@ -3538,15 +3579,57 @@ EOF
       specialist_route "$1" legs 54 legs10 compact17 53 compact16 ;;
     logs-v54)  # the tenth legged round's log (log_summary)
       log_summary "$RUNS54" legs10 ;;
+    bundle34-v55)  # the thirty-fourth bundle as shipped (git THIRTYFOURTH [09ba02f], its seven files) into BUNDLE55: what the
+      # v55 steps measure and change, on any machine
+      bundle_from_git "${THIRTYFOURTH:-09ba02f}" "$BUNDLE55" ;;
     data-v55)  # the router's drawings on a new machine: DATA36L (its validation, as route-v36 renders it) and DATA37 with
       # the fifth generator's images of both (data-v37); resumes
       sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
         --views-per-shape 4 --splits train --workers 2 --out "$DATA36L"
       step data-v37 ;;
+    data-strong-v55)  # the fifth generator's images of DATA37's and DATA36L's drawings strongly augmented (broken,
+      # doubled, wobbly lines: --augment-strength 1.0, another seed), normals16_strong: what a router reads from a rough
+      # drawing; resumes
+      [ -f "$DATA37/.cache/generated/normals16_mirror/done.npy" ] || step data-v55
+      local d
+      for d in "$DATA37" "$DATA36L"; do
+        sketchmesh data generated "$d" --models "$OUT8/models_fifth" --name normals16_strong --augment-strength 1.0 \
+          --seed 1 --workers 2
+      done ;;
+    router-v55)  # a wider router (ROUTER_CHANNELS [32 64 96 128], about 190,000 parameters) trained as router-v37
+      # trained the bundled one (ROUTER_EPOCHS [30]) on DATA37's images of the drawings, the flipped drawings and the
+      # strongly augmented drawings (data-strong-v55) into RUNS55/router_wide; scored on DATA36L's; resumes
+      [ -f "$DATA37/.cache/generated/normals16_strong/done.npy" ] || step data-strong-v55
+      # shellcheck disable=SC2086
+      sketchmesh router train --data "$DATA37" --val-data "$DATA36L" --inputs normals16 normals16_mirror normals16_strong \
+        --group "${LEGS[@]}" --epochs "${ROUTER_EPOCHS:-30}" --channels ${ROUTER_CHANNELS:-32 64 96 128} --threads 2 \
+        --out "$RUNS55/router_wide" ;;
+    routed-v55)  # OUT55/models_router: BUNDLE55 with router-v55's router (the same three routes) at ROUTE_THRESHOLD55
+      # [0.8], every other file byte-equal; then both routers' tables on DATA36L (router_table)
+      [ -f "$RUNS55/router_wide/config.json" ] || step router-v55
+      [ -f "$BUNDLE55/router.onnx" ] || step bundle34-v55
+      rm -rf "$OUT55/models_router"; cp -r "$BUNDLE55" "$OUT55/models_router"
+      rm -f "$OUT55/models_router/README.md" "$OUT55/models_router/__init__.py"
+      sketchmesh router export "$RUNS55/router_wide" --models "$OUT55/models_router" \
+        --route "mesh_predictor_legged.onnx=$(IFS=,; echo "${LEGS[*]}")" \
+        --route "mesh_predictor_second.onnx=$(IFS=,; echo "${SECOND[*]}")" \
+        --route "mesh_predictor_third.onnx=$(IFS=,; echo "${THIRD[*]}")" --threshold "${ROUTE_THRESHOLD55:-0.8}"
+      same_except "$OUT55/models_router" "$BUNDLE55" router.onnx
+      router_table "$DATA36L" "$BUNDLE55" "$OUT55/models_router" | tee "$OUT55/router_table.txt"
+      ROUTER_TABLE_INPUTS=normals16_strong router_table "$DATA36L" "$BUNDLE55" "$OUT55/models_router" \
+        | tee "$OUT55/router_table_strong.txt" ;;
+    eval-router-clean-v55|eval-router-side-v55|eval-router-strong-v55)  # routed-v55's folder on every test sketch of
+      # the case beside BUNDLE55's (eval-bundle-<case>-v55): both means, the paired difference, where the drawings went
+      local c=${1#eval-router-}; c=${c%-v55}
+      [ -f "$OUT55/models_router/router.onnx" ] || step routed-v55
+      [ -f "$OUT55/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v55"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT55/models_router" "$OUT55/router_$c" \
+        "$OUT55/bundle_$c/eval_models_test.json" ;;
     eval-bundle-clean-v55|eval-bundle-side-v55|eval-bundle-strong-v55)  # BUNDLE55 on every test sketch of the case
       # (route_eval) into OUT55/bundle_<case>, and where its router sent the drawings
       local c=${1#eval-bundle-}; c=${c%-v55}
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      [ -f "$BUNDLE55/router.onnx" ] || step bundle34-v55
       ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE55" "$OUT55/bundle_$c" ;;
     only-legs-clean-v55|only-second-clean-v55|only-third-clean-v55|only-legs-side-v55|only-second-side-v55|\
         only-third-side-v55|only-legs-strong-v55|only-second-strong-v55|only-third-strong-v55)  # one of BUNDLE55's
@@ -3560,6 +3643,7 @@ EOF
         third) f=mesh_predictor_third.onnx; cats=("${THIRD[@]}") ;;
       esac
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      [ -f "$BUNDLE55/router.onnx" ] || step bundle34-v55
       subset_data "$DATA36A" "data/test100e4_$k" "${cats[@]}"
       rm -rf "$OUT55/models_only_$k"; mkdir -p "$OUT55/models_only_$k"
       cp "$BUNDLE55"/generator*.onnx "$OUT55/models_only_$k/"
