@@ -3625,6 +3625,42 @@ EOF
       [ -f "$OUT55/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v55"
       ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT55/models_router" "$OUT55/router_$c" \
         "$OUT55/bundle_$c/eval_models_test.json" ;;
+    ship-router-v55)  # routed-v55's router.onnx into assets/models (the other networks checked byte-equal): the thirty-fifth
+      # bundle
+      [ -f "$OUT55/models_router/router.onnx" ] || step routed-v55
+      ship_files "$OUT55/models_router" router.onnx ;;
+    latency-bundle-v55|tradeoff-bundle-v55|docs-v55)  # routed-v55's folder (the thirty-fifth bundle's files) timed in the
+      # app's path (bundle_latency), its error against run time (bundle_tradeoff; run these two alone) and the README's
+      # gallery and plot (bundle_docs), into OUT55
+      bundle_round "${1%%-*}" "$OUT55/models_router" "$OUT55/models_router" routed-v55 "$OUT55" v55 ;;
+    latency-bundle34-v55)  # BUNDLE55 (the thirty-fourth bundle) timed in the app's path as latency-bundle-v55 times the
+      # thirty-fifth (bundle_latency; run it alone, then latency-bundle-v55 straight after) into OUT55/latency_bundle34
+      [ -f "$BUNDLE55/router.onnx" ] || step bundle34-v55
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_latency "$BUNDLE55" "$OUT55/latency_bundle34" ;;
+    router-cost-v55)  # what each router adds to a drawing, the thirty-fourth bundle's and routed-v55's, as router-cost-v37
+      # measures it (2 threads, p50 of 500 passes after 20 to warm up, alternating; run it alone)
+      [ -f "$OUT55/models_router/router.onnx" ] || step routed-v55
+      python3 - "$BUNDLE55" "$OUT55/models_router" <<'PY'
+import sys, time
+import numpy as np
+from engine.models import load_router
+routers = [load_router(f"{d}/router.onnx", 2) for d in sys.argv[1:]]
+x = np.random.default_rng(0).random((1, 3, 64, 64), dtype=np.float32)
+runs = [[] for _ in routers]
+for _ in range(520):
+    for r, out in zip(routers, runs):
+        t = time.perf_counter(); r.session.run(None, {r.input_name: x}); out.append(time.perf_counter() - t)
+for d, out in zip(sys.argv[1:], runs):
+    print(f"{d}/router.onnx: router pass p50 {np.median(out[20:]) * 1e3:.3f} ms")
+PY
+      ;;
+    router-v55-all)  # the router round in order (about 75 minutes on 2 cores): the bundle's own figures, the oracle, the
+      # wider router, its routing and its test figures
+      for s2 in bundle34-v55 data-v55 eval-bundle-clean-v55 eval-bundle-side-v55 eval-bundle-strong-v55 oracle-clean-v55 \
+          data-strong-v55 router-v55 routed-v55 eval-router-clean-v55 eval-router-side-v55 eval-router-strong-v55; do
+        step "$s2"
+      done ;;
     eval-bundle-clean-v55|eval-bundle-side-v55|eval-bundle-strong-v55)  # BUNDLE55 on every test sketch of the case
       # (route_eval) into OUT55/bundle_<case>, and where its router sent the drawings
       local c=${1#eval-bundle-}; c=${c%-v55}
