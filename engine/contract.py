@@ -19,7 +19,10 @@ Router (``router.onnx``, optional)
            ``routes`` (a JSON object: specialist file name -> list of categories) names other mesh
            predictors in the same folder, and ``route_threshold`` (a float in (0, 1)): a drawing goes to
            the specialist whose categories' summed probability is largest and above the threshold, every
-           other drawing to ``mesh_predictor.onnx``. A folder without ``router.onnx`` routes nothing.
+           other drawing to ``mesh_predictor.onnx``. Optional ``route_mirror`` (JSON ``true`` or ``false``,
+           absent = false): with the engine's mirror averaging on, the router reads the drawing and its
+           left-right flip and routes on their mean probabilities (else on the plain drawing's alone).
+           A folder without ``router.onnx`` routes nothing.
 
 Metadata (``metadata_props`` of each model, all strings)
     ``sketchmesh_format`` (= FORMAT_VERSION), ``sketchmesh_role`` ("generator" or
@@ -75,6 +78,7 @@ META_QUANTIZATION = "quantization"
 META_CATEGORIES = "categories"
 META_ROUTES = "routes"
 META_ROUTE_THRESHOLD = "route_threshold"
+META_ROUTE_MIRROR = "route_mirror"
 META_SOURCE_SHA256 = "source_sha256"
 PRECISION_VARIANTS = ("fp32", "int8-predictor", "int8", "int8w")
 """How a model folder can be run: as exported, with the predictor dynamically quantised to int8,

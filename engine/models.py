@@ -111,6 +111,8 @@ class LoadedModel:
         categories: the router's output order (router only, else None).
         routes: specialist file name -> its categories (router only, else None).
         route_threshold: summed probability above which a drawing goes to a specialist (router only).
+        route_mirror: whether, with mirror averaging on, the drawing is routed on the mean of its and its flip's
+            probabilities (router only; False when the metadata has no ``route_mirror``).
     """
 
     path: Path
@@ -124,6 +126,7 @@ class LoadedModel:
     categories: list[str] | None = None
     routes: dict[str, list[str]] | None = None
     route_threshold: float | None = None
+    route_mirror: bool = False
     input_shapes: dict[str, list] = field(default_factory=dict)
     output_shapes: dict[str, list] = field(default_factory=dict)
 
@@ -144,7 +147,8 @@ class LoadedModel:
             "template_level": self.template_level,
             "template_radius": self.template_radius,
             **({"categories": list(self.categories), "routes": {k: list(v) for k, v in self.routes.items()},
-                "route_threshold": self.route_threshold} if self.role == C.ROLE_ROUTER else {}),
+                "route_threshold": self.route_threshold, "route_mirror": self.route_mirror}
+               if self.role == C.ROLE_ROUTER else {}),
             "file_bytes": self.path.stat().st_size if self.path.exists() else None,
         }
 
@@ -345,7 +349,7 @@ def is_specialist_file_name(name) -> bool:
 
 def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedModel:
     """Load and validate ``router.onnx``: ``normals`` (N, 3, 64, 64) -> ``probabilities`` (N, K), with its
-    ``categories``, ``routes`` and ``route_threshold`` metadata (:mod:`engine.contract`). Every specialist
+    ``categories``, ``routes``, ``route_threshold`` and optional ``route_mirror`` metadata (:mod:`engine.contract`). Every specialist
     file it names must be in the same folder (it is loaded only when a drawing is routed to it).
 
     Raises:
@@ -380,6 +384,10 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
     if not 0.0 < threshold < 1.0:
         raise ModelError(f"{path}: router metadata {C.META_ROUTE_THRESHOLD!r} must be a number in (0, 1), "
                          f"got {meta.get(C.META_ROUTE_THRESHOLD)!r}")
+    mirror = _json_meta(path, meta, C.META_ROUTE_MIRROR) if C.META_ROUTE_MIRROR in meta else False
+    if not isinstance(mirror, bool):
+        raise ModelError(f"{path}: router metadata {C.META_ROUTE_MIRROR!r} must be true or false, "
+                         f"got {meta[C.META_ROUTE_MIRROR][:80]!r}")
     ins, outs = _io(sess, path)
     _check_names(path, "input", ins, [C.ROUTER_INPUT])
     _check_names(path, "output", outs, [C.ROUTER_OUTPUT])
@@ -388,4 +396,5 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
     _check_static(path, f"output {C.ROUTER_OUTPUT!r}", outs[C.ROUTER_OUTPUT], [None, len(cats)])
     return LoadedModel(path, C.ROLE_ROUTER, sess, meta, C.ROUTER_INPUT, [C.ROUTER_OUTPUT], categories=list(cats),
                        routes={k: list(v) for k, v in routes.items()}, route_threshold=threshold,
+                       route_mirror=mirror,
                        input_shapes=ins, output_shapes=outs)

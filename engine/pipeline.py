@@ -16,7 +16,8 @@ Stages (each timed in :attr:`Prediction.timings_ms`):
    meshes are averaged vertex by vertex, the second mirrored back (:func:`engine.icosphere.mirror_average`):
    the two drawings go through each network as one batch of two (a network whose batch dimension is fixed
    at 1 runs twice), each stage's time covers both (the averaging counts in ``assemble``), the normal image
-   kept is the plain drawing's, and both use the predictor the plain drawing was routed to;
+   kept is the plain drawing's, and both use the predictor the plain drawing was routed to (a router whose
+   metadata says ``route_mirror`` reads both drawings, one batch, and routes both on their mean probabilities);
 6. ``refine``      optional: N steps moving the mesh so its silhouette from the sketch's view
    matches the drawing's outline (:mod:`engine.refine`); 0.0 when off;
 7. ``repair``      optional (``repair_folds``): where the final mesh crosses itself, smooth just there until it
@@ -339,16 +340,20 @@ class SketchEngine:
             return model
 
     def _route(self, small: np.ndarray) -> tuple[str | None, str]:
-        """(specialist file or None, most likely category) of a (1, 3, 64, 64) predictor input; call under _run_lock."""
+        """(specialist file or None, most likely category) of (n, 3, 64, 64) predictor inputs of one drawing (n = 1, or
+        2 with its flip), routed on the rows' mean probabilities; call under _run_lock."""
         router = self._router
-        (probs,) = router.session.run([C.ROUTER_OUTPUT], {router.input_name: small})
-        p = np.asarray(probs, np.float64).reshape(-1)
-        if p.shape != (len(router.categories),) or not np.all(np.isfinite(p)):
+        (probs,) = _run_batch(router, [C.ROUTER_OUTPUT], small)
+        probs = np.asarray(probs, np.float64)
+        if probs.shape != (len(small), len(router.categories)) or not np.all(np.isfinite(probs)):
             raise ModelError(f"{router.path}: router output must be {len(router.categories)} finite probabilities, "
                              f"got shape {np.shape(probs)}")
-        if p.min() < -1e-6 or abs(p.sum() - 1.0) > 1e-3:
+        sums = probs.sum(axis=1)
+        worst = int(np.argmax(np.abs(sums - 1.0)))
+        if probs.min() < -1e-6 or abs(sums[worst] - 1.0) > 1e-3:
             raise ModelError(f"{router.path}: router output must be probabilities that sum to 1 (a softmax), got sum "
-                             f"{p.sum():.4g} and min {p.min():.4g}")
+                             f"{sums[worst]:.4g} and min {probs.min():.4g}")
+        p = probs.mean(axis=0)
         best, best_p = None, router.route_threshold
         for name, group in router.routes.items():
             q = float(sum(p[router.categories.index(c)] for c in group))
@@ -396,8 +401,8 @@ class SketchEngine:
             normals = np.clip(normals, 0.0, 1.0).astype(np.float32, copy=False)
             small = np.concatenate([downsample_normals(normals[i:i + 1]) for i in range(n)])
             t2 = time.perf_counter()
-            if self._router is not None:  # the plain drawing is routed; the flipped one follows it
-                route, category = self._route(small[:1])
+            if self._router is not None:  # the plain drawing is routed (with its flip: route_mirror); both follow it
+                route, category = self._route(small if self._router.route_mirror else small[:1])
                 if route is not None:  # the load lock is never held while waiting for the run lock
                     pred = self._specialist(route)
             local, glob = _run_batch(pred, pred.output_names, small)

@@ -169,34 +169,42 @@ def make_router(
     metadata: dict[str, str] | None = None,
     drop_metadata: tuple[str, ...] = (),
     softmax: bool = True,
+    weights=None,
 ) -> onnx.ModelProto:
     """A router whose ``probabilities`` are fixed: softmax of log(``probabilities``) whatever the image
-    (the input is pooled and multiplied by zero, so the graph still reads it).
+    (the input is pooled and multiplied by zero, so the graph still reads it), or, with ``weights``, read from the
+    image's left-right asymmetry.
 
     Args:
         probabilities: (K,) the output for every drawing (NaN entries make a broken router).
         categories, routes, threshold: the metadata (routes default: mesh_predictor_legged.onnx serves
             bench and chair).
         softmax: False outputs ``probabilities`` as given, unnormalised (a router exported without its softmax).
+        weights: (3, K): the logits are ``log(probabilities) + d @ weights``, d (N, 3) each channel's mean over the
+            image's left half minus its mean over the right half.
     """
     p = np.asarray(probabilities, np.float64)
     k = len(p)
     logits = np.log(np.where(p > 0, p, 1e-30)).astype(np.float32) if softmax else p.astype(np.float32)
     logits[np.isnan(p)] = np.nan
+    s = C.PREDICTOR_INPUT_SIZE
+    halves = np.where(np.arange(s) < s // 2, 2.0, -2.0).astype(np.float32) * np.ones((1, 1, s, 1), np.float32)
+    w = np.zeros((3, k), np.float32) if weights is None else np.asarray(weights, np.float32).reshape(3, k)
     nodes = [
-        helper.make_node("GlobalAveragePool", [C.ROUTER_INPUT], ["pooled"]),
+        helper.make_node("Mul", [C.ROUTER_INPUT, "halves"], ["signed"]),
+        helper.make_node("GlobalAveragePool", ["signed"], ["pooled"]),
         helper.make_node("Flatten", ["pooled"], ["flat"], axis=1),
         helper.make_node("Gemm", ["flat", "W", "B"], ["logits"]),
         helper.make_node("Softmax", ["logits"], [C.ROUTER_OUTPUT], axis=1) if softmax
         else helper.make_node("Identity", ["logits"], [C.ROUTER_OUTPUT]),
     ]
-    s = C.PREDICTOR_INPUT_SIZE
     graph = helper.make_graph(
         nodes,
         "fixture_router",
         [helper.make_tensor_value_info(C.ROUTER_INPUT, TensorProto.FLOAT, ["N", 3, s, s])],
         [helper.make_tensor_value_info(C.ROUTER_OUTPUT, TensorProto.FLOAT, ["N", k])],
-        initializer=[numpy_helper.from_array(np.zeros((3, k), np.float32), "W"), numpy_helper.from_array(logits, "B")],
+        initializer=[numpy_helper.from_array(w, "W"), numpy_helper.from_array(logits, "B"),
+                     numpy_helper.from_array(halves, "halves")],
     )
     meta = _metadata(C.ROLE_ROUTER, **{
         C.META_CATEGORIES: json.dumps(list(categories)),

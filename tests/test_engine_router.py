@@ -126,6 +126,72 @@ def test_mirror_averaging_uses_the_plain_drawings_route_for_both_passes(tmp_path
     assert pred.route == SPECIALIST and pred.category == "chair"
 
 
+def _small(generator: Path, raster: np.ndarray) -> np.ndarray:
+    """(1, 3, 64, 64) predictor input of a raster, independently of the engine (raw ORT, exact 4x block mean)."""
+    gen = ort.InferenceSession(str(generator), providers=["CPUExecutionProvider"])
+    (normals,) = gen.run(None, {"sketch": raster[None, None].astype(np.float32)})
+    return normals.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5))
+
+
+def _lopsided() -> list[Stroke]:
+    """Hatching on the left, one long line to the right: a drawing whose ink is mostly in its left half."""
+    return [Stroke([[100 + 6 * i, 100], [100 + 6 * i, 220]]) for i in range(10)] + [Stroke([[100, 160], [330, 160]])]
+
+
+def _mirror_router_folder(tmp_path: Path, mirror_meta: str | None) -> tuple[Path, np.ndarray, np.ndarray]:
+    """A folder whose router reads the image's left-right asymmetry d, built so that the plain drawing alone gives
+    bench + chair = 0.95 (> 0.9: the specialist) and its flip 0.5: their mean, 0.725, keeps the general predictor.
+    Returns the folder and the plain and flipped drawings' probabilities, computed here in numpy."""
+    folder = write_fixture_models(tmp_path / "models")
+    write_model(make_predictor(3, seed=7), folder / SPECIALIST)
+    raster = rasterize_strokes(_lopsided())
+    d = [(sm[..., :32].mean(axis=(2, 3)) - sm[..., 32:].mean(axis=(2, 3)))[0].astype(np.float64)
+         for sm in (_small(folder / C.GENERATOR_FILE, raster), _small(folder / C.GENERATOR_FILE, raster[:, ::-1].copy()))]
+    u = d[0] - d[1]
+    assert np.linalg.norm(u) > 1e-2  # the fixture generator's image of the drawing is far from mirror-symmetric
+    t_plain, t_flip = (float(u @ di / (u @ u)) for di in d)  # t_plain - t_flip = 1
+    g_plain, g_flip = np.log(9.5), np.log(0.5)  # bench = chair logit: 2 e^g / (2 e^g + 1) = 0.95, 0.5
+    alpha = g_plain - g_flip
+    beta = g_plain - alpha * t_plain
+    weights = np.zeros((3, 3))
+    weights[:, 0] = weights[:, 2] = alpha * u / (u @ u)
+    base = np.exp([beta, 0.0, beta]) / np.exp([beta, 0.0, beta]).sum()
+    meta = {} if mirror_meta is None else {C.META_ROUTE_MIRROR: mirror_meta}
+    write_model(make_router(base, weights=weights, metadata=meta), folder / C.ROUTER_FILE)
+
+    def probs(di):
+        z = np.log(base) + di @ weights
+        return np.exp(z - z.max()) / np.exp(z - z.max()).sum()
+
+    return folder, probs(d[0]), probs(d[1])
+
+
+def test_a_mirror_router_routes_on_the_mean_of_the_drawing_and_its_flip(tmp_path):
+    folder, plain, flipped = _mirror_router_folder(tmp_path, "true")
+    np.testing.assert_allclose([plain[0] + plain[2], flipped[0] + flipped[2]], [0.95, 0.5], atol=1e-9)
+    raster = rasterize_strokes(_lopsided())
+    eng = SketchEngine(folder, threads=1, cache_size=0, mirror_average=True)
+    pred = eng.predict(raster)
+    t = icosphere(3).vertices.astype(np.float64)
+    partner = np.linalg.norm(t[:, None] - (t * [-1.0, 1.0, 1.0])[None], axis=-1).argmin(1)
+    a = _vertices(folder / C.PREDICTOR_FILE, folder / C.GENERATOR_FILE, raster)
+    b = _vertices(folder / C.PREDICTOR_FILE, folder / C.GENERATOR_FILE, np.ascontiguousarray(raster[:, ::-1]))
+    np.testing.assert_allclose(pred.mesh.vertices, (a + (b * [-1.0, 1.0, 1.0])[partner]) / 2, atol=ORT_ATOL)
+    mean = (plain + flipped) / 2  # bench + chair 0.725 < 0.9: the general predictor
+    assert pred.route is None and pred.category == ("bench", "car", "chair")[int(np.argmax(mean))]
+    assert eng.model_info()["router"]["route_mirror"] is True
+    eng.mirror_average = False  # no flipped drawing to read: the plain drawing's 0.95 routes it
+    assert eng.predict(raster).route == SPECIALIST
+
+
+def test_without_route_mirror_the_plain_drawing_alone_routes_both_passes(tmp_path):
+    for meta in (None, "false"):
+        folder, _, _ = _mirror_router_folder(tmp_path / str(meta), meta)
+        eng = SketchEngine(folder, threads=1, cache_size=0, mirror_average=True)
+        assert eng.predict(_lopsided()).route == SPECIALIST
+        assert eng.model_info()["router"]["route_mirror"] is False
+
+
 def test_the_route_is_cached_with_the_mesh(tmp_path):
     folder = _folder(tmp_path, [0.5, 0.04, 0.46])
     eng = SketchEngine(folder, threads=1)
@@ -154,6 +220,8 @@ def _broken(tmp_path: Path, kind: str) -> tuple[Path, str]:
         return _folder(tmp_path, [0.5, 0.04, 0.46], routes={SPECIALIST: ["bench", "bench"]}), "each in one route"
     if kind == "categories not names":
         return _folder(tmp_path, [0.5, 0.5], metadata={C.META_CATEGORIES: "[[1], [2]]"}), "distinct names"
+    if kind == "route_mirror":
+        return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROUTE_MIRROR: '"yes"'}), "true or false"
     if kind == "role":
         return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROLE: C.ROLE_PREDICTOR}), "role"
     raise AssertionError(kind)
@@ -161,7 +229,7 @@ def _broken(tmp_path: Path, kind: str) -> tuple[Path, str]:
 
 @pytest.mark.parametrize("kind", ["missing specialist", "threshold", "unknown category", "route to the generator",
                                   "categories not a list", "output size", "no routes", "role", "category twice",
-                                  "categories not names"])
+                                  "categories not names", "route_mirror"])
 def test_a_broken_router_is_refused_on_load_naming_the_file(tmp_path, kind):
     folder, match = _broken(tmp_path, kind)
     with pytest.raises(ModelError, match=match) as err:

@@ -237,3 +237,31 @@ def test_cli_trains_the_router_of_the_given_widths(setup, tmp_path):
     net, cfg = load_router_run(tmp_path / "wide")
     assert cfg.channels == [4, 8, 8, 12] and cfg.weight_decay == 0.0 and net.channels == (4, 8, 8, 12)
     assert net.head.in_features == 12 * 4  # the last width, pooled to 2 x 2
+
+
+def test_router_set_rewrites_only_the_threshold_and_mirror_routing(trained, tmp_path):
+    import onnx
+
+    folder = _box_folder(tmp_path / "models")
+    export_router(trained, folder, {"mesh_predictor_box.onnx": ["box"]}, 0.8, mirror=True)
+    before = load_router(folder / C.ROUTER_FILE, threads=1)
+    assert before.route_mirror is True and before.route_threshold == 0.8
+    graph = onnx.load(str(folder / C.ROUTER_FILE)).graph.SerializeToString()
+    r = _cli("set", str(folder), "--no-mirror", "--threshold", "0.6")
+    assert r.returncode == 0 and "0.8 -> 0.6" in r.stdout and "on -> off" in r.stdout, r.stderr
+    after = load_router(folder / C.ROUTER_FILE, threads=1)
+    assert after.route_mirror is False and after.route_threshold == 0.6
+    assert after.routes == before.routes and after.categories == before.categories
+    assert onnx.load(str(folder / C.ROUTER_FILE)).graph.SerializeToString() == graph  # the network as it was
+    assert sorted(p.name for p in folder.iterdir() if p.name.startswith(".")) == []  # no temporary left
+    r = _cli("set", str(folder), "--mirror")  # the threshold stays
+    assert r.returncode == 0, r.stderr
+    again = load_router(folder / C.ROUTER_FILE, threads=1)
+    assert again.route_mirror is True and again.route_threshold == 0.6
+    plain = write_fixture_models(tmp_path / "plain")
+    for args, match in ((["set", str(folder)], "nothing to change"),
+                        (["set", str(plain), "--mirror"], "no router.onnx"),
+                        (["set", str(tmp_path / "nope"), "--mirror"], "does not exist"),
+                        (["set", str(folder), "--threshold", "0"], "between 0 and 1")):
+        r = _cli(*args)
+        assert r.returncode != 0 and match in r.stderr and "Traceback" not in r.stderr, (args, r.stderr)

@@ -1,4 +1,4 @@
-"""``sketchmesh router train | eval | export``: the category router that sends a drawing to a specialist predictor.
+"""``sketchmesh router train | eval | export | set``: the category router that sends a drawing to a specialist predictor.
 
 Cheap to import (argparse only; torch loads inside the commands). See :mod:`training.model.router`.
 """
@@ -98,11 +98,26 @@ def _cmd_export(args: argparse.Namespace) -> int:
     _, cfg = load_router_run(args.run)
     try:
         routes = parse_routes(args.route, cfg.categories)
-        report = export_router(args.run, args.models, routes, args.threshold)
+        report = export_router(args.run, args.models, routes, args.threshold, mirror=args.mirror)
     except ValueError as exc:
         raise RouterArgsError(str(exc)) from None
     print(f"wrote {report['path']} ({report['bytes'] / 1e3:.0f} kB; torch vs ONNX Runtime within "
           f"{report['parity_max_abs']:.1e}); routes {json.dumps(routes)} above {args.threshold}")
+    return 0
+
+
+def _cmd_set(args: argparse.Namespace) -> int:
+    from training.export.router_options import set_router_options
+
+    if not Path(args.models).is_dir():
+        raise ModelError(f"{args.models}: model folder does not exist")
+    try:
+        report = set_router_options(args.models, threshold=args.threshold, mirror=args.mirror)
+    except ValueError as exc:
+        raise RouterArgsError(str(exc)) from None
+    b, a = report["before"], report["after"]
+    print(f"{report['path']}: threshold {b['route_threshold']} -> {a['route_threshold']}, mirror routing "
+          f"{'on' if b['route_mirror'] else 'off'} -> {'on' if a['route_mirror'] else 'off'} (the network unchanged)")
     return 0
 
 
@@ -128,8 +143,12 @@ def _non_negative(text: str) -> float:
     return t
 
 
+MIRROR_HELP = ("route on the mean probabilities of the drawing and its left-right flip when the engine's mirror "
+               "averaging is on (route_mirror)")
+
+
 def register(commands, bench) -> None:
-    """Add ``router`` (train, eval, export) to the top-level sub-parsers."""
+    """Add ``router`` (train, eval, export, set) to the top-level sub-parsers."""
     p = commands.add_parser(
         "router", help="train, evaluate and export the category router that picks a specialist mesh predictor",
         description="A small classifier over the categories reads the predictor's input (the generator's normal image "
@@ -179,6 +198,17 @@ def register(commands, bench) -> None:
                    help="a specialist file in DIR and the categories it serves; repeatable")
     x.add_argument("--threshold", type=_open_unit, default=0.8,
                    help="summed probability above which a drawing goes to the specialist (default 0.8)")
+    x.add_argument("--mirror", action="store_true", help=MIRROR_HELP)
     x.add_argument("--threads", type=int_in(0, 256), default=0)
     x.set_defaults(func=_cmd_export)
     one_line_errors(x)
+
+    s = sub.add_parser("set", help="change a model folder's routing threshold or mirror routing (no retraining)",
+                       description="Rewrite router.onnx's route_threshold and route_mirror metadata in place (atomic); "
+                       "the network is kept as it is.")
+    s.add_argument("models", metavar="DIR", help="model folder with a router.onnx")
+    s.add_argument("--threshold", type=_open_unit,
+                   help="summed probability above which a drawing goes to the specialist")
+    s.add_argument("--mirror", action=argparse.BooleanOptionalAction, default=None, help=MIRROR_HELP)
+    s.set_defaults(func=_cmd_set)
+    one_line_errors(s)

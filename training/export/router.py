@@ -45,9 +45,10 @@ def parse_routes(specs: list[str], categories: list[str]) -> dict[str, list[str]
 
 
 def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes: dict[str, list[str]],
-                  threshold: float) -> dict:
+                  threshold: float, *, mirror: bool = False) -> dict:
     """Write ``models_dir/router.onnx`` from a router run (atomic), checked by :func:`engine.models.load_router`
     and for parity with torch on random and blank inputs. The specialist files must already be in ``models_dir``.
+    ``mirror`` sets ``route_mirror`` (:mod:`engine.contract`).
 
     Returns:
         {"path", "bytes", "parity_max_abs"}.
@@ -81,7 +82,7 @@ def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes:
     meta = {C.META_FORMAT: C.FORMAT_VERSION, C.META_ROLE: C.ROLE_ROUTER, C.META_CODE_VERSION: code_version(),
             C.META_CONFIG: cfg.to_json(), C.META_CONVENTIONS: C.CONVENTIONS_ID,
             C.META_CATEGORIES: json.dumps(cfg.categories), C.META_ROUTES: json.dumps(routes),
-            C.META_ROUTE_THRESHOLD: repr(float(threshold))}
+            C.META_ROUTE_THRESHOLD: repr(float(threshold)), C.META_ROUTE_MIRROR: json.dumps(bool(mirror))}
     data = _with_metadata(buf.getvalue(), meta)
     import onnxruntime as ort
 

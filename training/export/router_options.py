@@ -1,0 +1,63 @@
+"""Changing how a model folder's router routes, without retraining it: ``sketchmesh router set``.
+
+The router's network is kept as it is; only its ``route_threshold`` and ``route_mirror`` metadata
+(:mod:`engine.contract`) are rewritten, and the file is replaced atomically once the engine accepts it.
+Needs the ``onnx`` package (the ``train`` extra), not torch.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from engine import contract as C
+from engine.errors import ModelError
+
+
+def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None = None,
+                       mirror: bool | None = None) -> dict:
+    """Rewrite ``models_dir/router.onnx``'s threshold and/or mirror routing (atomic; checked by
+    :func:`engine.models.load_router` before it replaces anything).
+
+    Returns:
+        {"path", "before": {"route_threshold", "route_mirror"}, "after": {...}}.
+
+    Raises:
+        ModelError: no router in the folder, or a router the engine refuses (before or after).
+        ValueError: nothing to change, or a threshold outside (0, 1).
+    """
+    import onnx
+
+    from engine.fileio import atomic_write_bytes
+    from engine.models import load_router
+
+    if threshold is None and mirror is None:
+        raise ValueError("nothing to change: give --threshold and/or --mirror / --no-mirror")
+    if threshold is not None and not 0.0 < float(threshold) < 1.0:
+        raise ValueError(f"--threshold must lie in (0, 1), got {threshold}")
+    folder = Path(models_dir)
+    path = folder / C.ROUTER_FILE
+    if not path.is_file():
+        raise ModelError(f"{folder}: no {C.ROUTER_FILE} to change (a folder without a router routes nothing)")
+    old = load_router(path, threads=1)
+    before = {"route_threshold": old.route_threshold, "route_mirror": old.route_mirror}
+    model = onnx.load(str(path))
+    meta = {p.key: p.value for p in model.metadata_props}
+    if threshold is not None:
+        meta[C.META_ROUTE_THRESHOLD] = repr(float(threshold))
+    if mirror is not None:
+        meta[C.META_ROUTE_MIRROR] = json.dumps(bool(mirror))
+    del model.metadata_props[:]
+    for key, value in meta.items():
+        entry = model.metadata_props.add()
+        entry.key, entry.value = key, value
+    check = folder / f".{C.ROUTER_FILE}.{os.getpid()}.check.onnx"
+    atomic_write_bytes(check, model.SerializeToString())
+    try:
+        new = load_router(check, threads=1)
+        os.replace(check, path)
+    finally:
+        check.unlink(missing_ok=True)
+    return {"path": str(path), "before": before,
+            "after": {"route_threshold": new.route_threshold, "route_mirror": new.route_mirror}}
