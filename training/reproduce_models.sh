@@ -214,6 +214,21 @@
 #   predictor-v37-legs-more2 trains the specialist on a third time as long; check-legs-v37 scores it on DATA36C (the
 #   choice); routed2-v37 puts it in the routed folder and eval-route2-*-v37 score that folder on the same test drawings;
 #   ship-v37 bundles it (the bundled specialist since 2026-11-29 09:00; OUT37/models_routed's was bundled first).
+# A wider router (the thirty-fifth bundle; RUNS55 [runs/v55], OUT55 [out/v55]; router-v55-all runs the first twelve in
+#   order): bundle34-v55 takes the thirty-fourth bundle from git; eval-bundle-{clean,side,strong}-v55 score it on every
+#   test sketch; only-{legs,second,third}-<case>-v55 score each specialist alone on its categories' test drawings, and
+#   oracle-<case>-v55 what a perfect router would add; data-v55 and data-strong-v55 rebuild the router's drawings (DATA37,
+#   DATA36L) with the generator's images of clean, flipped and strongly augmented drawings; router-v55 trains a router
+#   twice as wide on them; routed-v55 exports it on the bundle and tables both routers by threshold on DATA36L;
+#   eval-router-{clean,side,strong}-v55 score it; ship-router-v55 bundles it; latency-bundle34-v55, latency-bundle-v55,
+#   tradeoff-bundle-v55, router-cost-v55 time it, docs-v55 draws the README's gallery and plot.
+# Mirror routing (OUT56 [out/v56]; mirror-v56-all runs the measuring steps in order): bundle35-v56 takes the thirty-fifth
+#   bundle from git; data-val-v56 renders the router's validation drawings (DATA36L) and the generator's images of them
+#   plain and flipped; mirror-v56 sets route_mirror on a copy of the bundle (sketchmesh router set: the router reads the
+#   drawing and its flip, which the app's mirror averaging computes anyway, and routes on their mean probabilities) and
+#   tables both ways on DATA36L; eval-bundle-{clean,side,strong}-v56 and eval-mirror-{clean,side,strong}-v56 score both
+#   on every test sketch, paired; ship-mirror-v56 bundles it; latency-bundle-v56, tradeoff-bundle-v56, mirror-cost-v56
+#   time it and docs-v56 draws the README's gallery and plot.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -406,6 +421,8 @@ RUNS54=${RUNS54:-runs/v54}
 OUT55=${OUT55:-out/v55}
 RUNS55=${RUNS55:-runs/v55}
 BUNDLE55=${BUNDLE55:-out/v55/models_bundle34}  # the thirty-fourth bundle (bundle34-v55), whose routing the v55 steps measure
+OUT56=${OUT56:-out/v56}
+BUNDLE56=${BUNDLE56:-out/v56/models_bundle35}  # the thirty-fifth bundle (bundle35-v56), which the v56 steps route both ways
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -1156,7 +1173,8 @@ router_table() {  # the routers of the model folders $2... on the dataset $1's g
   # expected gain on the 13-category mean, each route's categories' share x ROUTE_GAINS's gain of a drawing sent to its
   # specialist x recall - the other categories' share x 0.21 (what another drawing loses there, route-v36) x false
   # routes. ROUTE_GAINS ["legged=0.113 second=0.140 third=0.110": what the bundle's specialists gain on the clean test
-  # drawings its router missed, oracle-clean-v55]
+  # drawings its router missed, oracle-clean-v55]. A router whose metadata sets route_mirror routes each drawing on the
+  # mean of its and its flip's probabilities (the paired sets normals16 normals16_mirror), as the engine does
   ROUTER_TABLE_INPUTS=${ROUTER_TABLE_INPUTS:-normals16 normals16_mirror} python3 - "$@" <<'PY'
 import os, sys
 import numpy as np
@@ -1170,6 +1188,13 @@ for folder in folders:
     x = np.concatenate([g.rows(rows) for g, rows, _ in sets]).astype(np.float32)
     y = np.concatenate([lab for _, _, lab in sets])
     probs = np.concatenate([r.session.run(None, {r.input_name: x[i:i + 256]})[0] for i in range(0, len(x), 256)])
+    if r.route_mirror:  # as the engine routes with mirror averaging on: each drawing on the mean with its flip's
+        names_in = os.environ["ROUTER_TABLE_INPUTS"].split()
+        if sorted(names_in) != ["normals16", "normals16_mirror"] or not np.array_equal(sets[0][1], sets[1][1]):
+            sys.exit(f"router_table: {folder} routes on the drawing and its flip: give ROUTER_TABLE_INPUTS the paired "
+                     "sets normals16 normals16_mirror")
+        n = len(sets[0][1])
+        probs = np.concatenate([(probs[:n] + probs[n:]) / 2] * 2)
     print(f"{folder}/router.onnx: {len(y)} drawings of {data}, category right {np.mean(probs.argmax(1) == y):.3f}")
     names = list(r.routes)
     sums = np.stack([probs[:, [cats.index(c) for c in r.routes[n]]].sum(1) for n in names], 1)
@@ -3655,6 +3680,73 @@ for d, out in zip(sys.argv[1:], runs):
     print(f"{d}/router.onnx: router pass p50 {np.median(out[20:]) * 1e3:.3f} ms")
 PY
       ;;
+    bundle35-v56)  # the thirty-fifth bundle as shipped (git THIRTYFIFTH [d62d7f6], its seven files) into BUNDLE56
+      bundle_from_git "${THIRTYFIFTH:-d62d7f6}" "$BUNDLE56" ;;
+    data-val-v56)  # the router's validation drawings on a new machine: DATA36L (as data-v55 renders it) and the fifth
+      # generator's images of them and of their flipped drawings (what data-v37 makes of DATA36L; without DATA37); resumes
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
+      sketchmesh data --source procedural --first-shape 1200 --shapes-per-category 50 --views 12 --elevations 0 15 30 45 \
+        --views-per-shape 4 --splits train --workers 2 --out "$DATA36L"
+      sketchmesh data generated "$DATA36L" --models "$OUT8/models_fifth" --name normals16 --workers 2
+      sketchmesh data generated "$DATA36L" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    mirror-v56)  # OUT56/models_mirror: BUNDLE56 with its router set to route on the drawing and its flip (sketchmesh
+      # router set --mirror: the metadata alone changes), every network byte-equal but router.onnx, whose probabilities
+      # are checked the same (router_diff); then both ways tabled on DATA36L's plain and flipped drawings (router_table)
+      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
+      [ -f "$DATA36L/.cache/generated/normals16_mirror/done.npy" ] || step data-val-v56
+      rm -rf "$OUT56/models_mirror"; cp -r "$BUNDLE56" "$OUT56/models_mirror"
+      sketchmesh router set "$OUT56/models_mirror" --mirror
+      same_except "$OUT56/models_mirror" "$BUNDLE56" router.onnx
+      router_diff "$BUNDLE56" "$OUT56/models_mirror"
+      router_table "$DATA36L" "$BUNDLE56" "$OUT56/models_mirror" | tee "$OUT56/router_table.txt" ;;
+    eval-bundle-clean-v56|eval-bundle-side-v56|eval-bundle-strong-v56)  # BUNDLE56 on every test sketch of the case
+      # (route_eval) into OUT56/bundle_<case>, and where its router sent the drawings
+      local c=${1#eval-bundle-}; c=${c%-v56}
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE56" "$OUT56/bundle_$c" ;;
+    eval-mirror-clean-v56|eval-mirror-side-v56|eval-mirror-strong-v56)  # mirror-v56's folder on every test sketch of
+      # the case beside BUNDLE56's (eval-bundle-<case>-v56): both means, the paired difference, where the drawings went
+      local c=${1#eval-mirror-}; c=${c%-v56}
+      [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
+      [ -f "$OUT56/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v56"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_mirror" "$OUT56/mirror_$c" \
+        "$OUT56/bundle_$c/eval_models_test.json" ;;
+    mirror-v56-all)  # the mirror-routing round in order (about 45 minutes on 2 cores)
+      for s2 in bundle35-v56 data-test-v47 data-val-v56 mirror-v56 eval-bundle-clean-v56 eval-mirror-clean-v56 \
+          eval-bundle-strong-v56 eval-mirror-strong-v56 eval-bundle-side-v56 eval-mirror-side-v56; do
+        step "$s2"
+      done ;;
+    ship-mirror-v56)  # mirror-v56's router.onnx into assets/models (the other networks checked byte-equal): the
+      # thirty-sixth bundle
+      [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
+      ship_files "$OUT56/models_mirror" router.onnx ;;
+    latency-bundle-v56|tradeoff-bundle-v56|docs-v56)  # mirror-v56's folder (the thirty-sixth bundle's files) timed in the
+      # app's path (bundle_latency), its error against run time (bundle_tradeoff; run these two alone) and the README's
+      # gallery and plot (bundle_docs), into OUT56
+      bundle_round "${1%%-*}" "$OUT56/models_mirror" "$OUT56/models_mirror" mirror-v56 "$OUT56" v56 ;;
+    mirror-cost-v56)  # what mirror routing adds to a drawing: the bundle's router on one image and on the two the
+      # engine routes with route_mirror (2 threads, p50 of 500 passes after 20 to warm up, alternating; run it alone)
+      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
+      python3 - "$BUNDLE56/router.onnx" <<'PY'
+import sys, time
+import numpy as np
+from engine.models import load_router
+r = load_router(sys.argv[1], 2)
+x = np.random.default_rng(0).random((2, 3, 64, 64), dtype=np.float32)
+runs = {1: [], 2: []}
+for _ in range(520):
+    for n, out in runs.items():
+        t = time.perf_counter(); r.session.run(None, {r.input_name: x[:n]}); out.append(time.perf_counter() - t)
+for n, out in runs.items():
+    print(f"{sys.argv[1]}: router pass on {n} image{'s' if n > 1 else ''} p50 {np.median(out[20:]) * 1e3:.3f} ms")
+PY
+      ;;
+    latency-bundle35-v56)  # BUNDLE56 (the thirty-fifth bundle) timed in the app's path as latency-bundle-v56 times the
+      # thirty-sixth (bundle_latency; run it alone, then latency-bundle-v56 straight after) into OUT56/latency_bundle35
+      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_latency "$BUNDLE56" "$OUT56/latency_bundle35" ;;
     router-v55-all)  # the router round in order (about 75 minutes on 2 cores): the bundle's own figures, the oracle, the
       # wider router, its routing and its test figures
       for s2 in bundle34-v55 data-v55 eval-bundle-clean-v55 eval-bundle-side-v55 eval-bundle-strong-v55 oracle-clean-v55 \
