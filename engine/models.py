@@ -384,7 +384,8 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
     if not 0.0 < threshold < 1.0:
         raise ModelError(f"{path}: router metadata {C.META_ROUTE_THRESHOLD!r} must be a number in (0, 1), "
                          f"got {meta.get(C.META_ROUTE_THRESHOLD)!r}")
-    mirror = _json_meta(path, meta, C.META_ROUTE_MIRROR) if C.META_ROUTE_MIRROR in meta else False
+    mirror = meta.get(C.META_ROUTE_MIRROR, "false").strip()
+    mirror = {"true": True, "false": False}.get(mirror, mirror)
     if not isinstance(mirror, bool):
         raise ModelError(f"{path}: router metadata {C.META_ROUTE_MIRROR!r} must be true or false, "
                          f"got {meta[C.META_ROUTE_MIRROR][:80]!r}")

@@ -345,9 +345,12 @@ class SketchEngine:
         router = self._router
         (probs,) = _run_batch(router, [C.ROUTER_OUTPUT], small)
         probs = np.asarray(probs, np.float64)
-        if probs.shape != (len(small), len(router.categories)) or not np.all(np.isfinite(probs)):
+        if probs.shape != (len(small), len(router.categories)):
             raise ModelError(f"{router.path}: router output must be {len(router.categories)} finite probabilities, "
                              f"got shape {np.shape(probs)}")
+        if not np.all(np.isfinite(probs)):
+            raise ModelError(f"{router.path}: router output must be {len(router.categories)} finite probabilities, "
+                             "got NaN or inf (broken model?)")
         sums = probs.sum(axis=1)
         worst = int(np.argmax(np.abs(sums - 1.0)))
         if probs.min() < -1e-6 or abs(sums[worst] - 1.0) > 1e-3:

@@ -62,7 +62,7 @@ REGISTRARS = (
     "training.cli.data",  # data, bench data
     "training.cli.train",  # train, eval, export, import-models, average
     "training.cli.bench",  # bench renderer, bench fit
-    "training.cli.router",  # router train | eval | export
+    "training.cli.router",  # router train | eval | export | set
 )
 
 

@@ -170,6 +170,7 @@ def make_router(
     drop_metadata: tuple[str, ...] = (),
     softmax: bool = True,
     weights=None,
+    batch: int | str = "N",
 ) -> onnx.ModelProto:
     """A router whose ``probabilities`` are fixed: softmax of log(``probabilities``) whatever the image
     (the input is pooled and multiplied by zero, so the graph still reads it), or, with ``weights``, read from the
@@ -182,6 +183,7 @@ def make_router(
         softmax: False outputs ``probabilities`` as given, unnormalised (a router exported without its softmax).
         weights: (3, K): the logits are ``log(probabilities) + d @ weights``, d (N, 3) each channel's mean over the
             image's left half minus its mean over the right half.
+        batch: the batch dimension ("N" dynamic; 1 a router that takes one image a run, as the contract allows).
     """
     p = np.asarray(probabilities, np.float64)
     k = len(p)
@@ -201,8 +203,8 @@ def make_router(
     graph = helper.make_graph(
         nodes,
         "fixture_router",
-        [helper.make_tensor_value_info(C.ROUTER_INPUT, TensorProto.FLOAT, ["N", 3, s, s])],
-        [helper.make_tensor_value_info(C.ROUTER_OUTPUT, TensorProto.FLOAT, ["N", k])],
+        [helper.make_tensor_value_info(C.ROUTER_INPUT, TensorProto.FLOAT, [batch, 3, s, s])],
+        [helper.make_tensor_value_info(C.ROUTER_OUTPUT, TensorProto.FLOAT, [batch, k])],
         initializer=[numpy_helper.from_array(w, "W"), numpy_helper.from_array(logits, "B"),
                      numpy_helper.from_array(halves, "halves")],
     )

@@ -138,7 +138,7 @@ def _lopsided() -> list[Stroke]:
     return [Stroke([[100 + 6 * i, 100], [100 + 6 * i, 220]]) for i in range(10)] + [Stroke([[100, 160], [330, 160]])]
 
 
-def _mirror_router_folder(tmp_path: Path, mirror_meta: str | None) -> tuple[Path, np.ndarray, np.ndarray]:
+def _mirror_router_folder(tmp_path: Path, mirror_meta: str | None, batch="N") -> tuple[Path, np.ndarray, np.ndarray]:
     """A folder whose router reads the image's left-right asymmetry d, built so that the plain drawing alone gives
     bench + chair = 0.95 (> 0.9: the specialist) and its flip 0.5: their mean, 0.725, keeps the general predictor.
     Returns the folder and the plain and flipped drawings' probabilities, computed here in numpy."""
@@ -157,7 +157,7 @@ def _mirror_router_folder(tmp_path: Path, mirror_meta: str | None) -> tuple[Path
     weights[:, 0] = weights[:, 2] = alpha * u / (u @ u)
     base = np.exp([beta, 0.0, beta]) / np.exp([beta, 0.0, beta]).sum()
     meta = {} if mirror_meta is None else {C.META_ROUTE_MIRROR: mirror_meta}
-    write_model(make_router(base, weights=weights, metadata=meta), folder / C.ROUTER_FILE)
+    write_model(make_router(base, weights=weights, metadata=meta, batch=batch), folder / C.ROUTER_FILE)
 
     def probs(di):
         z = np.log(base) + di @ weights
@@ -166,8 +166,9 @@ def _mirror_router_folder(tmp_path: Path, mirror_meta: str | None) -> tuple[Path
     return folder, probs(d[0]), probs(d[1])
 
 
-def test_a_mirror_router_routes_on_the_mean_of_the_drawing_and_its_flip(tmp_path):
-    folder, plain, flipped = _mirror_router_folder(tmp_path, "true")
+@pytest.mark.parametrize("batch", ["N", 1])  # 1: a router that takes one image a run reads the two in turn
+def test_a_mirror_router_routes_on_the_mean_of_the_drawing_and_its_flip(tmp_path, batch):
+    folder, plain, flipped = _mirror_router_folder(tmp_path, "true", batch)
     np.testing.assert_allclose([plain[0] + plain[2], flipped[0] + flipped[2]], [0.95, 0.5], atol=1e-9)
     raster = rasterize_strokes(_lopsided())
     eng = SketchEngine(folder, threads=1, cache_size=0, mirror_average=True)
@@ -221,7 +222,7 @@ def _broken(tmp_path: Path, kind: str) -> tuple[Path, str]:
     if kind == "categories not names":
         return _folder(tmp_path, [0.5, 0.5], metadata={C.META_CATEGORIES: "[[1], [2]]"}), "distinct names"
     if kind == "route_mirror":
-        return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROUTE_MIRROR: '"yes"'}), "true or false"
+        return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROUTE_MIRROR: 'yes'}), "true or false"
     if kind == "role":
         return _folder(tmp_path, [0.5, 0.04, 0.46], metadata={C.META_ROLE: C.ROLE_PREDICTOR}), "role"
     raise AssertionError(kind)

@@ -258,6 +258,14 @@ def test_router_set_rewrites_only_the_threshold_and_mirror_routing(trained, tmp_
     assert r.returncode == 0, r.stderr
     again = load_router(folder / C.ROUTER_FILE, threads=1)
     assert again.route_mirror is True and again.route_threshold == 0.6
+    model = onnx.load(str(folder / C.ROUTER_FILE))  # a router the engine refuses (route_mirror "yes") is mended
+    next(p for p in model.metadata_props if p.key == C.META_ROUTE_MIRROR).value = "yes"
+    onnx.save(model, str(folder / C.ROUTER_FILE))
+    with pytest.raises(Exception, match="true or false"):
+        load_router(folder / C.ROUTER_FILE, threads=1)
+    r = _cli("set", str(folder), "--no-mirror")
+    assert r.returncode == 0 and "'yes' -> off" in r.stdout, r.stderr
+    assert load_router(folder / C.ROUTER_FILE, threads=1).route_mirror is False
     plain = write_fixture_models(tmp_path / "plain")
     for args, match in ((["set", str(folder)], "nothing to change"),
                         (["set", str(plain), "--mirror"], "no router.onnx"),

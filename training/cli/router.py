@@ -116,8 +116,9 @@ def _cmd_set(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise RouterArgsError(str(exc)) from None
     b, a = report["before"], report["after"]
+    was = {None: "off", "false": "off", "true": "on"}.get(b["route_mirror"], repr(b["route_mirror"]))
     print(f"{report['path']}: threshold {b['route_threshold']} -> {a['route_threshold']}, mirror routing "
-          f"{'on' if b['route_mirror'] else 'off'} -> {'on' if a['route_mirror'] else 'off'} (the network unchanged)")
+          f"{was} -> {'on' if a['route_mirror'] else 'off'} (the network unchanged)")
     return 0
 
 

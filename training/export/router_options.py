@@ -18,10 +18,11 @@ from engine.errors import ModelError
 def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None = None,
                        mirror: bool | None = None) -> dict:
     """Rewrite ``models_dir/router.onnx``'s threshold and/or mirror routing (atomic; checked by
-    :func:`engine.models.load_router` before it replaces anything).
+    :func:`engine.models.load_router` before it replaces anything, so a router whose old values the engine refuses
+    can be mended).
 
     Returns:
-        {"path", "before": {"route_threshold", "route_mirror"}, "after": {...}}.
+        {"path", "before": the old metadata strings (None where absent), "after": the values the engine now reads}.
 
     Raises:
         ModelError: no router in the folder, or a router the engine refuses (before or after).
@@ -40,10 +41,12 @@ def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None
     path = folder / C.ROUTER_FILE
     if not path.is_file():
         raise ModelError(f"{folder}: no {C.ROUTER_FILE} to change (a folder without a router routes nothing)")
-    old = load_router(path, threads=1)
-    before = {"route_threshold": old.route_threshold, "route_mirror": old.route_mirror}
-    model = onnx.load(str(path))
+    try:
+        model = onnx.load(str(path))
+    except Exception as exc:  # a truncated or foreign file: onnx raises its own errors
+        raise ModelError(f"{path}: cannot read it as an ONNX model ({exc.__class__.__name__})") from None
     meta = {p.key: p.value for p in model.metadata_props}
+    before = {"route_threshold": meta.get(C.META_ROUTE_THRESHOLD), "route_mirror": meta.get(C.META_ROUTE_MIRROR)}
     if threshold is not None:
         meta[C.META_ROUTE_THRESHOLD] = repr(float(threshold))
     if mirror is not None:
