@@ -227,7 +227,9 @@
 #   plain and flipped; mirror-v56 sets route_mirror on a copy of the bundle (sketchmesh router set: the router reads the
 #   drawing and its flip, which the app's mirror averaging computes anyway, and routes on their mean probabilities) and
 #   tables both ways on DATA36L; eval-bundle-{clean,side,strong}-v56 and eval-mirror-{clean,side,strong}-v56 score both
-#   on every test sketch, paired; ship-mirror-v56 bundles it; latency-bundle-v56, tradeoff-bundle-v56, mirror-cost-v56
+#   on every test sketch, paired; mirror06-v56 and eval-mirror06-{clean,side,strong}-v56 the same at the threshold
+#   the validation table favours for it (0.6), plain06-v56 and eval-plain06-*-v56 that threshold without mirror
+#   routing; ship-mirror-v56 bundles it; latency-bundle-v56, tradeoff-bundle-v56, mirror-cost-v56
 #   time it and docs-v56 draws the README's gallery and plot.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
@@ -3712,19 +3714,47 @@ PY
       [ -f "$OUT56/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v56"
       ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_mirror" "$OUT56/mirror_$c" \
         "$OUT56/bundle_$c/eval_models_test.json" ;;
+    mirror06-v56)  # OUT56/models_mirror06: mirror-v56's folder at the threshold ROUTE_THRESHOLD56 [0.6], where the
+      # validation table (mirror-v56, OUT56/router_table.txt) puts mirror routing's best expected gain (averaging two
+      # drawings' probabilities makes the router less sure, so a lower threshold suits it)
+      [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
+      rm -rf "$OUT56/models_mirror06"; cp -r "$OUT56/models_mirror" "$OUT56/models_mirror06"
+      sketchmesh router set "$OUT56/models_mirror06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
+      same_except "$OUT56/models_mirror06" "$BUNDLE56" router.onnx ;;
+    eval-mirror06-clean-v56|eval-mirror06-side-v56|eval-mirror06-strong-v56)  # mirror06-v56's folder on every test
+      # sketch of the case beside BUNDLE56's and mirror-v56's (eval-bundle-, eval-mirror-<case>-v56)
+      local c=${1#eval-mirror06-}; c=${c%-v56}
+      [ -f "$OUT56/models_mirror06/router.onnx" ] || step mirror06-v56
+      [ -f "$OUT56/mirror_$c/eval_models_test.json" ] || step "eval-mirror-$c-v56"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_mirror06" "$OUT56/mirror06_$c" \
+        "$OUT56/bundle_$c/eval_models_test.json" "$OUT56/mirror_$c/eval_models_test.json" ;;
+    plain06-v56)  # OUT56/models_plain06: BUNDLE56 at the threshold ROUTE_THRESHOLD56 [0.6] without mirror routing: what
+      # the lower threshold alone does (beside mirror-v56: mirror routing alone)
+      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
+      rm -rf "$OUT56/models_plain06"; cp -r "$BUNDLE56" "$OUT56/models_plain06"
+      sketchmesh router set "$OUT56/models_plain06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
+      same_except "$OUT56/models_plain06" "$BUNDLE56" router.onnx ;;
+    eval-plain06-clean-v56|eval-plain06-side-v56|eval-plain06-strong-v56)  # plain06-v56's folder on every test sketch
+      # of the case beside BUNDLE56's and mirror06-v56's (eval-bundle-, eval-mirror06-<case>-v56)
+      local c=${1#eval-plain06-}; c=${c%-v56}
+      [ -f "$OUT56/models_plain06/router.onnx" ] || step plain06-v56
+      [ -f "$OUT56/mirror06_$c/eval_models_test.json" ] || step "eval-mirror06-$c-v56"
+      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_plain06" "$OUT56/plain06_$c" \
+        "$OUT56/bundle_$c/eval_models_test.json" "$OUT56/mirror06_$c/eval_models_test.json" ;;
     mirror-v56-all)  # the mirror-routing round in order (about 45 minutes on 2 cores)
       for s2 in bundle35-v56 data-test-v47 data-val-v56 mirror-v56 eval-bundle-clean-v56 eval-mirror-clean-v56 \
-          eval-bundle-strong-v56 eval-mirror-strong-v56 eval-bundle-side-v56 eval-mirror-side-v56; do
+          eval-bundle-strong-v56 eval-mirror-strong-v56 eval-bundle-side-v56 eval-mirror-side-v56 mirror06-v56 \
+          eval-mirror06-clean-v56 eval-mirror06-strong-v56 eval-mirror06-side-v56; do
         step "$s2"
       done ;;
-    ship-mirror-v56)  # mirror-v56's router.onnx into assets/models (the other networks checked byte-equal): the
-      # thirty-sixth bundle
-      [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
-      ship_files "$OUT56/models_mirror" router.onnx ;;
-    latency-bundle-v56|tradeoff-bundle-v56|docs-v56)  # mirror-v56's folder (the thirty-sixth bundle's files) timed in the
-      # app's path (bundle_latency), its error against run time (bundle_tradeoff; run these two alone) and the README's
-      # gallery and plot (bundle_docs), into OUT56
-      bundle_round "${1%%-*}" "$OUT56/models_mirror" "$OUT56/models_mirror" mirror-v56 "$OUT56" v56 ;;
+    ship-mirror-v56)  # mirror06-v56's router.onnx (mirror routing at 0.6; the same network) into assets/models (the
+      # other networks checked byte-equal): the thirty-sixth bundle
+      [ -f "$OUT56/models_mirror06/router.onnx" ] || step mirror06-v56
+      ship_files "$OUT56/models_mirror06" router.onnx ;;
+    latency-bundle-v56|tradeoff-bundle-v56|docs-v56)  # mirror06-v56's folder (the thirty-sixth bundle's files) timed in
+      # the app's path (bundle_latency), its error against run time (bundle_tradeoff; run these two alone) and the
+      # README's gallery and plot (bundle_docs), into OUT56
+      bundle_round "${1%%-*}" "$OUT56/models_mirror06" "$OUT56/models_mirror06" mirror06-v56 "$OUT56" v56 ;;
     mirror-cost-v56)  # what mirror routing adds to a drawing: the bundle's router on one image and on the two the
       # engine routes with route_mirror (2 threads, p50 of 500 passes after 20 to warm up, alternating; run it alone)
       [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
