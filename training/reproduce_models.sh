@@ -669,6 +669,18 @@ routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the 
   cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
 }
 
+variant_eval() {  # routed_eval of the v56 folder OUT56/models_$1 (made by step $2 when missing) on every test sketch of
+  # case $3 into OUT56/$1_$3, beside the earlier folders' results OUT56/<name>_$3 of the names $4... (eval-<name>-$3-v56
+  # first where missing)
+  local name=$1 make=$2 c=$3 v prev=(); shift 3
+  [ -f "$OUT56/models_$name/router.onnx" ] || step "$make"
+  for v in "$@"; do
+    [ -f "$OUT56/${v}_$c/eval_models_test.json" ] || step "eval-$v-$c-v56"
+    prev+=("$OUT56/${v}_$c/eval_models_test.json")
+  done
+  ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_$name" "$OUT56/${name}_$c" "${prev[@]}"
+}
+
 routed_eval() {  # route_eval of a folder routing to the specialists ($1 the case, $2 the folder, $3 the eval folder,
   # $4... earlier results), then where its router sent the drawings, route by route (ROUTE_GROUPS [ROUTES2])
   route_eval "$@"
@@ -3707,13 +3719,16 @@ PY
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
       [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
       ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE56" "$OUT56/bundle_$c" ;;
-    eval-mirror-clean-v56|eval-mirror-side-v56|eval-mirror-strong-v56)  # mirror-v56's folder on every test sketch of
-      # the case beside BUNDLE56's (eval-bundle-<case>-v56): both means, the paired difference, where the drawings went
-      local c=${1#eval-mirror-}; c=${c%-v56}
-      [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
-      [ -f "$OUT56/bundle_$c/eval_models_test.json" ] || step "eval-bundle-$c-v56"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_mirror" "$OUT56/mirror_$c" \
-        "$OUT56/bundle_$c/eval_models_test.json" ;;
+    eval-mirror-clean-v56|eval-mirror-side-v56|eval-mirror-strong-v56|eval-mirror06-clean-v56|eval-mirror06-side-v56|\
+        eval-mirror06-strong-v56|eval-plain06-clean-v56|eval-plain06-side-v56|eval-plain06-strong-v56)  # a v56 folder on
+      # every test sketch of the case beside the earlier ones (variant_eval): mirror-v56's beside BUNDLE56's
+      # (eval-bundle-<case>-v56), mirror06-v56's beside both, plain06-v56's beside BUNDLE56's and mirror06-v56's
+      local k=${1#eval-} c; k=${k%-v56}; c=${k##*-}; k=${k%-*}
+      case $k in
+        mirror) variant_eval mirror mirror-v56 "$c" bundle ;;
+        mirror06) variant_eval mirror06 mirror06-v56 "$c" bundle mirror ;;
+        plain06) variant_eval plain06 plain06-v56 "$c" bundle mirror06 ;;
+      esac ;;
     mirror06-v56)  # OUT56/models_mirror06: mirror-v56's folder at the threshold ROUTE_THRESHOLD56 [0.6], where the
       # validation table (mirror-v56, OUT56/router_table.txt) puts mirror routing's best expected gain (averaging two
       # drawings' probabilities makes the router less sure, so a lower threshold suits it)
@@ -3721,30 +3736,17 @@ PY
       rm -rf "$OUT56/models_mirror06"; cp -r "$OUT56/models_mirror" "$OUT56/models_mirror06"
       sketchmesh router set "$OUT56/models_mirror06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
       same_except "$OUT56/models_mirror06" "$BUNDLE56" router.onnx ;;
-    eval-mirror06-clean-v56|eval-mirror06-side-v56|eval-mirror06-strong-v56)  # mirror06-v56's folder on every test
-      # sketch of the case beside BUNDLE56's and mirror-v56's (eval-bundle-, eval-mirror-<case>-v56)
-      local c=${1#eval-mirror06-}; c=${c%-v56}
-      [ -f "$OUT56/models_mirror06/router.onnx" ] || step mirror06-v56
-      [ -f "$OUT56/mirror_$c/eval_models_test.json" ] || step "eval-mirror-$c-v56"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_mirror06" "$OUT56/mirror06_$c" \
-        "$OUT56/bundle_$c/eval_models_test.json" "$OUT56/mirror_$c/eval_models_test.json" ;;
     plain06-v56)  # OUT56/models_plain06: BUNDLE56 at the threshold ROUTE_THRESHOLD56 [0.6] without mirror routing: what
       # the lower threshold alone does (beside mirror-v56: mirror routing alone)
       [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
       rm -rf "$OUT56/models_plain06"; cp -r "$BUNDLE56" "$OUT56/models_plain06"
       sketchmesh router set "$OUT56/models_plain06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
       same_except "$OUT56/models_plain06" "$BUNDLE56" router.onnx ;;
-    eval-plain06-clean-v56|eval-plain06-side-v56|eval-plain06-strong-v56)  # plain06-v56's folder on every test sketch
-      # of the case beside BUNDLE56's and mirror06-v56's (eval-bundle-, eval-mirror06-<case>-v56)
-      local c=${1#eval-plain06-}; c=${c%-v56}
-      [ -f "$OUT56/models_plain06/router.onnx" ] || step plain06-v56
-      [ -f "$OUT56/mirror06_$c/eval_models_test.json" ] || step "eval-mirror06-$c-v56"
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$OUT56/models_plain06" "$OUT56/plain06_$c" \
-        "$OUT56/bundle_$c/eval_models_test.json" "$OUT56/mirror06_$c/eval_models_test.json" ;;
-    mirror-v56-all)  # the mirror-routing round in order (about 45 minutes on 2 cores)
+    mirror-v56-all)  # the mirror-routing round in order (about 75 minutes on 2 cores)
       for s2 in bundle35-v56 data-test-v47 data-val-v56 mirror-v56 eval-bundle-clean-v56 eval-mirror-clean-v56 \
           eval-bundle-strong-v56 eval-mirror-strong-v56 eval-bundle-side-v56 eval-mirror-side-v56 mirror06-v56 \
-          eval-mirror06-clean-v56 eval-mirror06-strong-v56 eval-mirror06-side-v56; do
+          eval-mirror06-clean-v56 eval-mirror06-strong-v56 eval-mirror06-side-v56 plain06-v56 eval-plain06-clean-v56 \
+          eval-plain06-strong-v56 eval-plain06-side-v56; do
         step "$s2"
       done ;;
     ship-mirror-v56)  # mirror06-v56's router.onnx (mirror routing at 0.6; the same network) into assets/models (the
