@@ -669,6 +669,13 @@ routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the 
   cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
 }
 
+bundle_eval() {  # routed_eval of the bundle folder $1 (made by step $2 when missing) on every test sketch of case $3 into
+  # $4, rendering the test split first where missing (data-test-v47)
+  [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+  [ -f "$1/router.onnx" ] || step "$2"
+  ROUTE_GROUPS=$ROUTES3 routed_eval "$3" "$1" "$4"
+}
+
 variant_eval() {  # routed_eval of the v56 folder OUT56/models_$1 (made by step $2 when missing) on every test sketch of
   # case $3 into OUT56/$1_$3, beside the earlier folders' results OUT56/<name>_$3 of the names $4... (eval-<name>-$3-v56
   # first where missing)
@@ -3716,9 +3723,7 @@ PY
     eval-bundle-clean-v56|eval-bundle-side-v56|eval-bundle-strong-v56)  # BUNDLE56 on every test sketch of the case
       # (route_eval) into OUT56/bundle_<case>, and where its router sent the drawings
       local c=${1#eval-bundle-}; c=${c%-v56}
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE56" "$OUT56/bundle_$c" ;;
+      bundle_eval "$BUNDLE56" bundle35-v56 "$c" "$OUT56/bundle_$c" ;;
     eval-mirror-clean-v56|eval-mirror-side-v56|eval-mirror-strong-v56|eval-mirror06-clean-v56|eval-mirror06-side-v56|\
         eval-mirror06-strong-v56|eval-plain06-clean-v56|eval-plain06-side-v56|eval-plain06-strong-v56)  # a v56 folder on
       # every test sketch of the case beside the earlier ones (variant_eval): mirror-v56's beside BUNDLE56's
@@ -3788,9 +3793,7 @@ PY
     eval-bundle-clean-v55|eval-bundle-side-v55|eval-bundle-strong-v55)  # BUNDLE55 on every test sketch of the case
       # (route_eval) into OUT55/bundle_<case>, and where its router sent the drawings
       local c=${1#eval-bundle-}; c=${c%-v55}
-      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
-      [ -f "$BUNDLE55/router.onnx" ] || step bundle34-v55
-      ROUTE_GROUPS=$ROUTES3 routed_eval "$c" "$BUNDLE55" "$OUT55/bundle_$c" ;;
+      bundle_eval "$BUNDLE55" bundle34-v55 "$c" "$OUT55/bundle_$c" ;;
     only-legs-clean-v55|only-second-clean-v55|only-third-clean-v55|only-legs-side-v55|only-second-side-v55|\
         only-third-side-v55|only-legs-strong-v55|only-second-strong-v55|only-third-strong-v55)  # one of BUNDLE55's
       # specialists alone (OUT55/models_only_<kind>: the bundle's generator files and the specialist as mesh_predictor.onnx,
