@@ -121,7 +121,7 @@ def _conv_sizes(model, convs: list, x: np.ndarray) -> dict[str, tuple[int, int]]
     return result
 
 
-def _mark_meta(model, key: str, value: str) -> None:
+def mark_meta(model, key: str, value: str) -> None:
     """In place: metadata ``key`` set to ``value``, the rest kept."""
     for p in model.metadata_props:
         if p.key == key:
@@ -422,7 +422,7 @@ def static_int8_generator(src: str | os.PathLike, dst: str | os.PathLike, calibr
 
     del q.metadata_props[:]  # the source's metadata, marked as what it now is
     for k, v in {**meta, C.META_QUANTIZATION: "int8-static", C.META_SOURCE_SHA256: file_sha256(src)}.items():
-        _mark_meta(q, k, v)
+        mark_meta(q, k, v)
     data = q.SerializeToString()
     try:
         fast = ort.InferenceSession(data, providers=["CPUExecutionProvider"])

@@ -385,10 +385,8 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
         raise ModelError(f"{path}: router metadata {C.META_ROUTE_THRESHOLD!r} must be a number in (0, 1), "
                          f"got {meta.get(C.META_ROUTE_THRESHOLD)!r}")
     mirror = meta.get(C.META_ROUTE_MIRROR, "false").strip()
-    mirror = {"true": True, "false": False}.get(mirror, mirror)
-    if not isinstance(mirror, bool):
-        raise ModelError(f"{path}: router metadata {C.META_ROUTE_MIRROR!r} must be true or false, "
-                         f"got {meta[C.META_ROUTE_MIRROR][:80]!r}")
+    if mirror not in ("true", "false"):
+        raise ModelError(f"{path}: router metadata {C.META_ROUTE_MIRROR!r} must be true or false, got {mirror[:80]!r}")
     ins, outs = _io(sess, path)
     _check_names(path, "input", ins, [C.ROUTER_INPUT])
     _check_names(path, "output", outs, [C.ROUTER_OUTPUT])
@@ -397,5 +395,5 @@ def load_router(path: str | os.PathLike, threads: int | None = None) -> LoadedMo
     _check_static(path, f"output {C.ROUTER_OUTPUT!r}", outs[C.ROUTER_OUTPUT], [None, len(cats)])
     return LoadedModel(path, C.ROLE_ROUTER, sess, meta, C.ROUTER_INPUT, [C.ROUTER_OUTPUT], categories=list(cats),
                        routes={k: list(v) for k, v in routes.items()}, route_threshold=threshold,
-                       route_mirror=mirror,
+                       route_mirror=mirror == "true",
                        input_shapes=ins, output_shapes=outs)

@@ -41,13 +41,17 @@ def _folder(tmp_path: Path, probabilities, **router_kwargs) -> Path:
     return folder
 
 
+def _small(generator: Path, raster: np.ndarray) -> np.ndarray:
+    """(1, 3, 64, 64) predictor input of a raster, independently of the engine (raw ORT, exact 4x block mean)."""
+    gen = ort.InferenceSession(str(generator), providers=["CPUExecutionProvider"])
+    (normals,) = gen.run(None, {"sketch": raster[None, None].astype(np.float32)})
+    return normals.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5)).astype(np.float32)
+
+
 def _vertices(predictor: Path, generator: Path, raster: np.ndarray) -> np.ndarray:
     """Independent pipeline: raw ORT sessions, exact 4x block-mean downsampling, template + offsets."""
-    gen = ort.InferenceSession(str(generator), providers=["CPUExecutionProvider"])
     pred = ort.InferenceSession(str(predictor), providers=["CPUExecutionProvider"])
-    (normals,) = gen.run(None, {"sketch": raster[None, None].astype(np.float32)})
-    small = normals.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5)).astype(np.float32)
-    local, glob = pred.run(["local_offset", "global_offset"], {"normals": small})
+    local, glob = pred.run(["local_offset", "global_offset"], {"normals": _small(generator, raster)})
     return icosphere(3).vertices.astype(np.float64) + local[0] + glob[0]
 
 
@@ -124,13 +128,6 @@ def test_mirror_averaging_uses_the_plain_drawings_route_for_both_passes(tmp_path
     partner = np.linalg.norm(t[:, None] - (t * [-1.0, 1.0, 1.0])[None], axis=-1).argmin(1)
     np.testing.assert_allclose(pred.mesh.vertices, (plain + (flipped * [-1.0, 1.0, 1.0])[partner]) / 2, atol=ORT_ATOL)
     assert pred.route == SPECIALIST and pred.category == "chair"
-
-
-def _small(generator: Path, raster: np.ndarray) -> np.ndarray:
-    """(1, 3, 64, 64) predictor input of a raster, independently of the engine (raw ORT, exact 4x block mean)."""
-    gen = ort.InferenceSession(str(generator), providers=["CPUExecutionProvider"])
-    (normals,) = gen.run(None, {"sketch": raster[None, None].astype(np.float32)})
-    return normals.reshape(1, 3, 64, 4, 64, 4).mean(axis=(3, 5))
 
 
 def _lopsided() -> list[Stroke]:

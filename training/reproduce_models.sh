@@ -669,6 +669,13 @@ routed_swap() {  # a copy $3 of the routed folder $1 with the specialist of the 
   cp "$2/mesh_predictor.onnx" "$3/${4:-mesh_predictor_legged.onnx}"
 }
 
+router_variant() {  # a copy $2 (replaced) of the model folder $1 with its router's metadata changed by `sketchmesh router
+  # set` $3..., every network but router.onnx checked byte-equal to BUNDLE56's
+  rm -rf "$2"; cp -r "$1" "$2"
+  sketchmesh router set "$2" "${@:3}"
+  same_except "$2" "$BUNDLE56" router.onnx
+}
+
 bundle_eval() {  # routed_eval of the bundle folder $1 (made by step $2 when missing) on every test sketch of case $3 into
   # $4, rendering the test split first where missing (data-test-v47)
   [ -f "$DATA36A/manifest.json" ] || step data-test-v47
@@ -3715,9 +3722,7 @@ PY
       # are checked the same (router_diff); then both ways tabled on DATA36L's plain and flipped drawings (router_table)
       [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
       [ -f "$DATA36L/.cache/generated/normals16_mirror/done.npy" ] || step data-val-v56
-      rm -rf "$OUT56/models_mirror"; cp -r "$BUNDLE56" "$OUT56/models_mirror"
-      sketchmesh router set "$OUT56/models_mirror" --mirror
-      same_except "$OUT56/models_mirror" "$BUNDLE56" router.onnx
+      router_variant "$BUNDLE56" "$OUT56/models_mirror" --mirror
       router_diff "$BUNDLE56" "$OUT56/models_mirror"
       router_table "$DATA36L" "$BUNDLE56" "$OUT56/models_mirror" | tee "$OUT56/router_table.txt" ;;
     eval-bundle-clean-v56|eval-bundle-side-v56|eval-bundle-strong-v56)  # BUNDLE56 on every test sketch of the case
@@ -3738,15 +3743,11 @@ PY
       # validation table (mirror-v56, OUT56/router_table.txt) puts mirror routing's best expected gain (averaging two
       # drawings' probabilities makes the router less sure, so a lower threshold suits it)
       [ -f "$OUT56/models_mirror/router.onnx" ] || step mirror-v56
-      rm -rf "$OUT56/models_mirror06"; cp -r "$OUT56/models_mirror" "$OUT56/models_mirror06"
-      sketchmesh router set "$OUT56/models_mirror06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
-      same_except "$OUT56/models_mirror06" "$BUNDLE56" router.onnx ;;
+      router_variant "$OUT56/models_mirror" "$OUT56/models_mirror06" --threshold "${ROUTE_THRESHOLD56:-0.6}" ;;
     plain06-v56)  # OUT56/models_plain06: BUNDLE56 at the threshold ROUTE_THRESHOLD56 [0.6] without mirror routing: what
       # the lower threshold alone does (beside mirror-v56: mirror routing alone)
       [ -f "$BUNDLE56/router.onnx" ] || step bundle35-v56
-      rm -rf "$OUT56/models_plain06"; cp -r "$BUNDLE56" "$OUT56/models_plain06"
-      sketchmesh router set "$OUT56/models_plain06" --threshold "${ROUTE_THRESHOLD56:-0.6}"
-      same_except "$OUT56/models_plain06" "$BUNDLE56" router.onnx ;;
+      router_variant "$BUNDLE56" "$OUT56/models_plain06" --threshold "${ROUTE_THRESHOLD56:-0.6}" ;;
     mirror-v56-all)  # the mirror-routing round in order (about 75 minutes on 2 cores)
       for s2 in bundle35-v56 data-test-v47 data-val-v56 mirror-v56 eval-bundle-clean-v56 eval-mirror-clean-v56 \
           eval-bundle-strong-v56 eval-mirror-strong-v56 eval-bundle-side-v56 eval-mirror-side-v56 mirror06-v56 \

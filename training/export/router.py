@@ -57,8 +57,7 @@ def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes:
     import warnings
 
     from engine.errors import ModelError
-    from engine.fileio import atomic_write_bytes
-    from engine.models import load_router
+    from training.export.router_options import replace_router
     from training.export.to_onnx import OPSET, _with_metadata
     from training.loop.config import code_version
 
@@ -92,12 +91,5 @@ def export_router(run: str | os.PathLike, models_dir: str | os.PathLike, routes:
     err = float(np.abs(got - ref).max())
     if not err <= PARITY_TOLERANCE:
         raise ModelError(f"router export: ONNX Runtime differs from torch by {err:.3g} (tolerance {PARITY_TOLERANCE})")
-    path = out / C.ROUTER_FILE
-    check = out / f".{C.ROUTER_FILE}.{os.getpid()}.check.onnx"  # checked as the engine will, before it replaces anything
-    atomic_write_bytes(check, data)
-    try:
-        load_router(check, threads=1)
-        os.replace(check, path)
-    finally:
-        check.unlink(missing_ok=True)
-    return {"path": str(path), "bytes": len(data), "parity_max_abs": err}
+    replace_router(out, data)  # checked as the engine will, before it replaces anything
+    return {"path": str(out / C.ROUTER_FILE), "bytes": len(data), "parity_max_abs": err}

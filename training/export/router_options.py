@@ -15,6 +15,22 @@ from engine import contract as C
 from engine.errors import ModelError
 
 
+def replace_router(folder: Path, data: bytes):
+    """Write ``data`` as ``folder/router.onnx`` only once :func:`engine.models.load_router` accepts it (written to a
+    temporary name first, then renamed over the old file; no temporary left either way). Returns the loaded router."""
+    from engine.fileio import atomic_write_bytes
+    from engine.models import load_router
+
+    check = folder / f".{C.ROUTER_FILE}.{os.getpid()}.check.onnx"
+    atomic_write_bytes(check, data)
+    try:
+        router = load_router(check, threads=1)
+        os.replace(check, folder / C.ROUTER_FILE)
+    finally:
+        check.unlink(missing_ok=True)
+    return router
+
+
 def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None = None,
                        mirror: bool | None = None) -> dict:
     """Rewrite ``models_dir/router.onnx``'s threshold and/or mirror routing (atomic; checked by
@@ -30,8 +46,7 @@ def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None
     """
     import onnx
 
-    from engine.fileio import atomic_write_bytes
-    from engine.models import load_router
+    from engine.bench import mark_meta
 
     if threshold is None and mirror is None:
         raise ValueError("nothing to change: give --threshold and/or --mirror / --no-mirror")
@@ -48,19 +63,9 @@ def set_router_options(models_dir: str | os.PathLike, *, threshold: float | None
     meta = {p.key: p.value for p in model.metadata_props}
     before = {"route_threshold": meta.get(C.META_ROUTE_THRESHOLD), "route_mirror": meta.get(C.META_ROUTE_MIRROR)}
     if threshold is not None:
-        meta[C.META_ROUTE_THRESHOLD] = repr(float(threshold))
+        mark_meta(model, C.META_ROUTE_THRESHOLD, repr(float(threshold)))
     if mirror is not None:
-        meta[C.META_ROUTE_MIRROR] = json.dumps(bool(mirror))
-    del model.metadata_props[:]
-    for key, value in meta.items():
-        entry = model.metadata_props.add()
-        entry.key, entry.value = key, value
-    check = folder / f".{C.ROUTER_FILE}.{os.getpid()}.check.onnx"
-    atomic_write_bytes(check, model.SerializeToString())
-    try:
-        new = load_router(check, threads=1)
-        os.replace(check, path)
-    finally:
-        check.unlink(missing_ok=True)
+        mark_meta(model, C.META_ROUTE_MIRROR, json.dumps(bool(mirror)))
+    new = replace_router(folder, model.SerializeToString())
     return {"path": str(path), "before": before,
             "after": {"route_threshold": new.route_threshold, "route_mirror": new.route_mirror}}
