@@ -226,3 +226,34 @@ def main_fit_args_voxel(extra: list[str]) -> bool:
 
     args = build_parser().parse_args(["bench", "fit", "--target", "x.obj", *extra])
     return _fit_options(args).get("voxel_surface", True)
+
+
+def test_cli_bench_fit_procedural_categories_supports_and_meshes(tmp_path, capsys):
+    """``--categories`` fits only the named categories, each row counts the supports the fit and the target stand
+    on, and ``--meshes`` writes each fit as an OBJ in the template's topology; bad flags give one-line errors."""
+    from engine.camera import normalize_vertices
+    from sketchmesh.cli import main
+    from training.data.shapes import make_shape
+    from training.evaluation.metrics import solid_voxels, support_count
+
+    out_json, mesh_dir = tmp_path / "fit.json", tmp_path / "meshes"
+    rc = main(["bench", "fit", "--procedural", "1", "--categories", "table,car", "--views", "2", "--iters", "2",
+               "--resolution", "24", "--meshes", str(mesh_dir), "--json", str(out_json)])
+    assert rc == 0
+    rows = json.loads(out_json.read_text())["shapes"]
+    assert [r["category"] for r in rows] == ["car", "table"]  # the library's order, one shape each
+    table = make_shape("table", int(rows[1]["shape_id"].rsplit("_", 1)[1]))
+    upright = Mesh(normalize_vertices(table.vertices).astype(np.float32), table.faces)
+    assert rows[1]["target_supports"] == support_count(solid_voxels(upright))
+    assert all(r["supports"] == 1 for r in rows)  # two iterations from the sphere: still one blob
+    for r in rows:
+        tm = trimesh.load(mesh_dir / f"{r['shape_id']}.obj", force="mesh", process=False)
+        assert len(tm.vertices) == 642 and len(tm.faces) == 1280
+    capsys.readouterr()
+    assert main(["bench", "fit", "--procedural", "1", "--categories", "chiar"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "chiar" in err and "Traceback" not in err
+    box = tmp_path / "box.obj"
+    trimesh.creation.box().export(box)
+    assert main(["bench", "fit", "--target", str(box), "--meshes", str(tmp_path / "m")]) == 2
+    assert "--meshes" in capsys.readouterr().err and not (tmp_path / "m").exists()

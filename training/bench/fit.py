@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -29,11 +30,19 @@ import numpy as np
 
 from engine.camera import Camera, frame_camera, look_at, normalize_vertices
 from engine.errors import MeshInputError, SketchmeshError
+from engine.export import export_mesh
 from engine.fileio import atomic_write_text
 from engine.icosphere import PAPER_LEVEL, TEMPLATE_SHAPES, template_mesh
 from engine.mesh import Mesh
 from training._torch import require_torch
-from training.evaluation.metrics import DEFAULT_VOXEL_RESOLUTION, silhouette_iou, surface_metrics, voxel_iou
+from training.evaluation.metrics import (
+    DEFAULT_VOXEL_RESOLUTION,
+    silhouette_iou,
+    solid_voxels,
+    support_count,
+    surface_metrics,
+    voxel_iou,
+)
 from training.model.losses import NORMAL_REGIONS, LossWeights, MeshLoss
 
 FIT_ELEVATION_DEG = 30.0
@@ -398,6 +407,9 @@ def main_fit(args) -> int:
         raise SketchmeshError("bench fit needs exactly one of --target MESH_FILE or --procedural N")
     if per_category:
         return main_fit_procedural(args)
+    for flag in ("categories", "meshes"):
+        if getattr(args, flag, None):
+            raise SketchmeshError(f"--{flag} goes with --procedural N, not --target")
     views = _int_arg(args, "views", 1, MAX_VIEWS, 8)
     iters = _int_arg(args, "iters", 0, MAX_ITERS, DEFAULT_ITERS)
     resolution = _int_arg(args, "resolution", 8, MAX_RESOLUTION, 64)
@@ -444,12 +456,16 @@ def main_fit(args) -> int:
     return 0
 
 
-def procedural_targets(per_category: int, split: str = "train") -> list[tuple[str, str, Mesh]]:
-    """(category, shape id, mesh) of the first ``per_category`` procedural shapes of ``split`` per category."""
+def procedural_targets(per_category: int, split: str = "train",
+                       categories: tuple[str, ...] | None = None) -> list[tuple[str, str, Mesh]]:
+    """(category, shape id, mesh) of the first ``per_category`` procedural shapes of ``split`` per category
+    (of ``categories`` only when given, in the library's order)."""
     from training.data.shapes import CATEGORIES, make_shape, shape_id, split_of
 
     out = []
     for c in CATEGORIES:
+        if categories is not None and c not in categories:
+            continue
         i, found = 0, 0
         while found < per_category:
             if split_of(c, i) == split:
@@ -459,11 +475,28 @@ def procedural_targets(per_category: int, split: str = "train") -> list[tuple[st
     return out
 
 
-def main_fit_procedural(args) -> int:
-    """``sketchmesh bench fit --procedural N``: the direct-fit ceiling on N training shapes of every category.
+def parse_categories(text: str | None) -> tuple[str, ...] | None:
+    """``--categories``' comma-separated names, checked against the procedural library (None: every category)."""
+    from training.data.shapes import CATEGORIES
 
-    Prints one row per shape (mean / min silhouette IoU over the fit views, voxel IoU, Chamfer-L1,
-    seconds) and the means; ``--json`` writes them.
+    if text is None:
+        return None
+    names = tuple(dict.fromkeys(n.strip() for n in str(text).split(",") if n.strip()))
+    unknown = [n for n in names if n not in CATEGORIES]
+    if not names or unknown:
+        raise SketchmeshError(f"--categories takes a comma-separated list of {', '.join(CATEGORIES)}; "
+                              f"got {text!r}" + (f" ({', '.join(unknown)} unknown)" if unknown else ""))
+    return names
+
+
+def main_fit_procedural(args) -> int:
+    """``sketchmesh bench fit --procedural N``: the direct-fit ceiling on N training shapes of every category
+    (``--categories``: of those only).
+
+    Prints one row per shape (mean / min silhouette IoU over the fit views, voxel IoU, Chamfer-L1, the separate
+    supports the fit and the target stand on (:func:`~training.evaluation.metrics.support_count` at the voxel
+    grid), seconds) and the means; ``--json`` writes them, ``--meshes DIR`` each fitted mesh as ``SHAPE_ID.obj``
+    in the normalised target frame.
     """
     torch = require_torch()
     per_category = _int_arg(args, "procedural", 1, 1000, 1)
@@ -475,7 +508,11 @@ def main_fit_procedural(args) -> int:
     threads = _int_arg(args, "threads", 1, 256, DEFAULT_FIT_THREADS)
     extra = _fit_options(args)
     json_path = getattr(args, "json", None)
-    targets = procedural_targets(per_category)
+    mesh_dir = getattr(args, "meshes", None)
+    targets = procedural_targets(per_category, categories=parse_categories(getattr(args, "categories", None)))
+    if mesh_dir:
+        os.makedirs(mesh_dir, exist_ok=True)
+    voxel_surface = extra.get("voxel_surface", True)
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     rows = []
@@ -487,19 +524,24 @@ def main_fit_procedural(args) -> int:
                          level=level, **extra)
             rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(r.silhouette_iou)),
                          "min_silhouette_iou": float(min(r.silhouette_iou)), "voxel_iou": r.voxel_iou,
-                         "chamfer_l1": r.chamfer_l1, "seconds": r.seconds})
+                         "chamfer_l1": r.chamfer_l1, "seconds": r.seconds,
+                         "supports": support_count(solid_voxels(r.mesh, DEFAULT_VOXEL_RESOLUTION, voxel_surface)),
+                         "target_supports": support_count(solid_voxels(r.target, DEFAULT_VOXEL_RESOLUTION,
+                                                                       voxel_surface))})
+            if mesh_dir:
+                export_mesh(r.mesh, os.path.join(mesh_dir, f"{sid}.obj"))
     finally:
         torch.set_num_threads(before)
     print(f"fit: {len(rows)} procedural training shapes <- icosphere level {level}, {iters} iterations, "
           f"{views} views at {resolution}x{resolution}, {extra or 'default settings'}")
-    print(f"{'shape':<20} {'sil IoU':>8} {'min':>6} {'voxel':>6} {'chamfer':>8} {'s':>6}")
+    print(f"{'shape':<20} {'sil IoU':>8} {'min':>6} {'voxel':>6} {'chamfer':>8} {'supports':>8} {'s':>6}")
     for r in rows:
         print(f"{r['shape_id']:<20} {r['silhouette_iou']:>8.3f} {r['min_silhouette_iou']:>6.3f} {r['voxel_iou']:>6.3f} "
-              f"{r['chamfer_l1']:>8.4f} {r['seconds']:>6.1f}")
+              f"{r['chamfer_l1']:>8.4f} {str(r['supports']) + ' / ' + str(r['target_supports']):>8} {r['seconds']:>6.1f}")
     mean = {k: float(np.nanmean([r[k] for r in rows])) for k in ("silhouette_iou", "min_silhouette_iou", "voxel_iou",
                                                                "chamfer_l1", "seconds")}
     print(f"{'mean':<20} {mean['silhouette_iou']:>8.3f} {mean['min_silhouette_iou']:>6.3f} {mean['voxel_iou']:>6.3f} "
-          f"{mean['chamfer_l1']:>8.4f} {mean['seconds']:>6.1f}")
+          f"{mean['chamfer_l1']:>8.4f} {'':>8} {mean['seconds']:>6.1f}")
     if json_path:
         record = {"benchmark": "fit-procedural", "per_category": per_category, "iters": iters, "views": views,
                   "resolution": resolution, "template_level": level, "settings": extra, "shapes": rows, "mean": mean}
