@@ -233,15 +233,19 @@ def test_cli_bench_fit_procedural_categories_supports_and_meshes(tmp_path, capsy
     on, and ``--meshes`` writes each fit as an OBJ in the template's topology; bad flags give one-line errors."""
     from engine.camera import normalize_vertices
     from sketchmesh.cli import main
-    from training.data.shapes import make_shape
+    from training.data.shapes import make_shape, split_of
     from training.evaluation.metrics import solid_voxels, support_count
 
     out_json, mesh_dir = tmp_path / "fit.json", tmp_path / "meshes"
     rc = main(["bench", "fit", "--procedural", "1", "--categories", "table,car", "--views", "2", "--iters", "2",
-               "--resolution", "24", "--meshes", str(mesh_dir), "--json", str(out_json)])
+               "--resolution", "24", "--split", "test", "--meshes", str(mesh_dir), "--json", str(out_json)])
     assert rc == 0
     rows = json.loads(out_json.read_text())["shapes"]
     assert [r["category"] for r in rows] == ["car", "table"]  # the library's order, one shape each
+    for r in rows:  # the first test shape of each: the split's hash puts every lower index elsewhere
+        i = int(r["shape_id"].rsplit("_", 1)[1])
+        assert split_of(r["category"], i) == "test"
+        assert all(split_of(r["category"], j) != "test" for j in range(i))
     table = make_shape("table", int(rows[1]["shape_id"].rsplit("_", 1)[1]))
     upright = Mesh(normalize_vertices(table.vertices).astype(np.float32), table.faces)
     assert rows[1]["target_supports"] == support_count(solid_voxels(upright))
@@ -257,3 +261,37 @@ def test_cli_bench_fit_procedural_categories_supports_and_meshes(tmp_path, capsy
     trimesh.creation.box().export(box)
     assert main(["bench", "fit", "--target", str(box), "--meshes", str(tmp_path / "m")]) == 2
     assert "--meshes" in capsys.readouterr().err and not (tmp_path / "m").exists()
+    assert main(["bench", "fit", "--target", str(box), "--split", "test"]) == 2
+    assert "--split" in capsys.readouterr().err
+
+
+def test_ceiling_rows_pair_each_fit_with_the_models_drawings():
+    """The direct fit beside a model folder's meshes of the same shape: means and shares by hand."""
+    from training.bench.fit import ceiling_rows, ceiling_table
+
+    col = "models +mirror"
+    fits = [{"shapes": [
+        {"category": "chair", "shape_id": "chair_00018", "voxel_iou": 0.5, "supports": 4, "target_supports": 4},
+        {"category": "chair", "shape_id": "chair_00019", "voxel_iou": 0.7, "supports": 1, "target_supports": 1},
+        {"category": "chair", "shape_id": "chair_09999", "voxel_iou": 0.9, "supports": 1, "target_supports": 1},
+    ]}]
+
+    def view(iou, sup):
+        return {"iou": {col: iou, "template": 0.1}, "supports": {col: sup}}
+
+    evaluation = {"rows": [
+        {"category": "chair", "shape_id": "chair_00018", "true_supports": 4,
+         "per_view": [view(0.2, 1), view(0.4, 4), view(0.3, 2), {"iou": {col: None}, "supports": {col: None}}]},
+        {"category": "chair", "shape_id": "chair_00019", "true_supports": 1, "per_view": [view(0.6, 1)]},
+    ]}
+    rows = ceiling_rows(fits, evaluation, col)
+    assert [r["shape_id"] for r in rows] == ["chair_00018", "chair_00019"]  # chair_09999 is not in the eval
+    r = rows[0]
+    assert r["drawings"] == 3 and r["model_voxel_iou"] == pytest.approx(0.3)
+    assert r["model_separate"] == pytest.approx(2 / 3) and r["model_same"] == pytest.approx(1 / 3)
+    assert (r["fit_voxel_iou"], r["fit_supports"], r["true_supports"]) == (0.5, 4, 4)
+    table = ceiling_table(rows)
+    assert "| chair | 2 | 0.600 | 0.450 | 1 | 1.00 / 1.00 | 0.67 / 0.33 |" in table
+    evaluation["rows"][1]["true_supports"] = 3  # another shape under the same name
+    with pytest.raises(SketchmeshError, match="chair_00019"):
+        ceiling_rows(fits, evaluation, col)

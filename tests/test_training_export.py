@@ -644,3 +644,37 @@ def test_parity_inputs_of_a_small_sketch_dataset_keep_its_normal_images(tmp_path
     _, fallback, _ = parity_inputs(TrainConfig(data_dir=str(tmp_path / "no_data")))
     assert not np.array_equal(normals64.numpy(), fallback.numpy())
     assert sketches.amax() == 1.0 and sketches.amin() == 0.0
+
+
+def test_ceiling_sheet_sets_the_fits_beside_the_models_mesh_and_the_shape(run_dir, exported, tmp_path):
+    """A "fit" that is the true shape written to OBJ renders as the true shape does; the models' mesh does not."""
+    from PIL import Image
+
+    from engine.export import export_mesh
+    from training.data.dataset import ShapeViewDataset
+    from training.evaluation.gallery import GalleryError, ceiling_images, ceiling_sheet
+
+    data = run_dir.parent / "data"
+    test = ShapeViewDataset(data, "test", extra_views=0, augment_strength=0.0)
+    recs = test._shapes[:2]
+    fits = tmp_path / "fits"
+    fits.mkdir()
+    for rec in recs:
+        export_mesh(test.load_mesh(rec["category"], rec["shape_id"]), fits / f"{rec['shape_id']}.obj")
+    ids = [rec["shape_id"] for rec in recs]
+    rows = ceiling_images(exported, data, {"fit": fits}, ids, azimuth=0, turn=15, size=48, threads=1)
+    assert [r["shape_id"] for r in rows] == ids
+    for r in rows:
+        im = r["images"]
+        assert list(im) == ["drawing", "models' mesh", "fit", "true shape"]
+        assert all(im[k].shape == (48, 48) for k in ("models' mesh", "fit", "true shape"))
+        assert np.abs(im["fit"] - im["true shape"]).mean() < 2e-3  # float32 OBJ round trip, same camera and frame
+        assert im["true shape"].min() < 1.0  # the shape is in the picture
+        assert np.abs(im["models' mesh"] - im["true shape"]).mean() > 0.01
+    out = ceiling_sheet(exported, data, {"fit": fits}, ids, tmp_path / "sheet.png", azimuth=0, turn=15, size=48,
+                        threads=1)
+    assert Image.open(out).size == (720, 360)  # 4 columns x 2 rows of 1.8 inches at 100 dpi
+    with pytest.raises(GalleryError, match="no fitted mesh"):
+        ceiling_images(exported, data, {"fit": tmp_path}, ids, size=48, threads=1)
+    with pytest.raises(GalleryError, match="nosuch_00000"):
+        ceiling_images(exported, data, {"fit": fits}, ["nosuch_00000"], size=48, threads=1)

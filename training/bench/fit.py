@@ -407,7 +407,7 @@ def main_fit(args) -> int:
         raise SketchmeshError("bench fit needs exactly one of --target MESH_FILE or --procedural N")
     if per_category:
         return main_fit_procedural(args)
-    for flag in ("categories", "meshes"):
+    for flag in ("categories", "meshes", "split"):
         if getattr(args, flag, None):
             raise SketchmeshError(f"--{flag} goes with --procedural N, not --target")
     views = _int_arg(args, "views", 1, MAX_VIEWS, 8)
@@ -490,8 +490,8 @@ def parse_categories(text: str | None) -> tuple[str, ...] | None:
 
 
 def main_fit_procedural(args) -> int:
-    """``sketchmesh bench fit --procedural N``: the direct-fit ceiling on N training shapes of every category
-    (``--categories``: of those only).
+    """``sketchmesh bench fit --procedural N``: the direct-fit ceiling on the first N shapes of the split (``--split``,
+    default train) of every category (``--categories``: of those only).
 
     Prints one row per shape (mean / min silhouette IoU over the fit views, voxel IoU, Chamfer-L1, the separate
     supports the fit and the target stand on (:func:`~training.evaluation.metrics.support_count` at the voxel
@@ -509,7 +509,8 @@ def main_fit_procedural(args) -> int:
     extra = _fit_options(args)
     json_path = getattr(args, "json", None)
     mesh_dir = getattr(args, "meshes", None)
-    targets = procedural_targets(per_category, categories=parse_categories(getattr(args, "categories", None)))
+    split = getattr(args, "split", None) or "train"
+    targets = procedural_targets(per_category, split, categories=parse_categories(getattr(args, "categories", None)))
     if mesh_dir:
         os.makedirs(mesh_dir, exist_ok=True)
     voxel_surface = extra.get("voxel_surface", True)
@@ -532,7 +533,7 @@ def main_fit_procedural(args) -> int:
                 export_mesh(r.mesh, os.path.join(mesh_dir, f"{sid}.obj"))
     finally:
         torch.set_num_threads(before)
-    print(f"fit: {len(rows)} procedural training shapes <- icosphere level {level}, {iters} iterations, "
+    print(f"fit: {len(rows)} procedural {split} shapes <- icosphere level {level}, {iters} iterations, "
           f"{views} views at {resolution}x{resolution}, {extra or 'default settings'}")
     print(f"{'shape':<20} {'sil IoU':>8} {'min':>6} {'voxel':>6} {'chamfer':>8} {'supports':>8} {'s':>6}")
     for r in rows:
@@ -543,8 +544,72 @@ def main_fit_procedural(args) -> int:
     print(f"{'mean':<20} {mean['silhouette_iou']:>8.3f} {mean['min_silhouette_iou']:>6.3f} {mean['voxel_iou']:>6.3f} "
           f"{mean['chamfer_l1']:>8.4f} {'':>8} {mean['seconds']:>6.1f}")
     if json_path:
-        record = {"benchmark": "fit-procedural", "per_category": per_category, "iters": iters, "views": views,
+        record = {"benchmark": "fit-procedural", "split": split, "per_category": per_category, "iters": iters,
+                  "views": views,
                   "resolution": resolution, "template_level": level, "settings": extra, "shapes": rows, "mean": mean}
         atomic_write_text(json_path, json.dumps(record, indent=2) + "\n")
         print(f"wrote {json_path}")
     return 0
+
+
+def ceiling_rows(fit_records: list[dict], eval_record: dict, column: str) -> list[dict]:
+    """Each fitted shape beside what a model folder made of its drawings: the direct fit as the ceiling.
+
+    Args:
+        fit_records: ``bench fit --procedural --json`` records (their ``shapes`` rows).
+        eval_record: an ``eval --models --json`` record (its ``rows``, with ``per_view`` ``iou`` and ``supports``)
+            on a dataset holding the same shapes.
+        column: the model folder's column in ``eval_record``.
+
+    Returns:
+        One dict a fitted shape found in ``eval_record`` (in the fits' order): ``category``, ``shape_id``,
+        ``true_supports``, ``fit_voxel_iou``, ``fit_supports``, ``drawings``, ``model_voxel_iou`` (the mean over its
+        drawings), ``model_separate`` (the share of its drawings whose mesh stands on two or more supports) and
+        ``model_same`` (on as many as the shape). A shape the eval does not hold is left out; the fit's and the
+        eval's count of the shape's own supports must agree (the same shape, the same voxel grid).
+    """
+    by_id = {r["shape_id"]: r for r in eval_record["rows"]}
+    out = []
+    for rec in fit_records:
+        for f in rec["shapes"]:
+            e = by_id.get(f["shape_id"])
+            if e is None:
+                continue
+            if e["category"] != f["category"] or e["true_supports"] != f["target_supports"]:
+                raise SketchmeshError(f"{f['shape_id']}: the fit's shape ({f['category']}, {f['target_supports']} "
+                                      f"supports) is not the eval's ({e['category']}, {e['true_supports']})")
+            views = [v for v in e["per_view"] if v["iou"].get(column) is not None]
+            if not views:
+                raise SketchmeshError(f"{f['shape_id']}: no drawing of it has a {column!r} score")
+            sup = [v["supports"][column] for v in views]
+            out.append({"category": f["category"], "shape_id": f["shape_id"], "true_supports": f["target_supports"],
+                        "fit_voxel_iou": f["voxel_iou"], "fit_supports": f["supports"], "drawings": len(views),
+                        "model_voxel_iou": float(np.mean([v["iou"][column] for v in views])),
+                        "model_separate": float(np.mean([s >= 2 for s in sup])),
+                        "model_same": float(np.mean([s == f["target_supports"] for s in sup]))})
+    return out
+
+
+def ceiling_table(rows: list[dict]) -> str:
+    """:func:`ceiling_rows` as markdown: a line a shape, then a line a category (its shapes' means; the supports over
+    its shapes on two or more)."""
+    lines = ["| shape | supports | fit: voxel / supports | model: voxel / on 2+ / on as many |",
+             "|---|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['shape_id']} | {r['true_supports']} | {r['fit_voxel_iou']:.3f} / {r['fit_supports']} | "
+                     f"{r['model_voxel_iou']:.3f} / {r['model_separate']:.2f} / {r['model_same']:.2f} |")
+    lines += ["", "| category | shapes | fit voxel | model voxel | standing shapes | fit on 2+ / on as many | "
+              "model on 2+ / on as many |", "|---|---:|---:|---:|---:|---:|---:|"]
+    for c in dict.fromkeys(r["category"] for r in rows):
+        rs = [r for r in rows if r["category"] == c]
+        st = [r for r in rs if r["true_supports"] >= 2]
+
+        def share(vals):
+            return f"{np.mean(vals):.2f}" if vals else "-"
+
+        lines.append(
+            f"| {c} | {len(rs)} | {np.mean([r['fit_voxel_iou'] for r in rs]):.3f} | "
+            f"{np.mean([r['model_voxel_iou'] for r in rs]):.3f} | {len(st)} | "
+            f"{share([r['fit_supports'] >= 2 for r in st])} / {share([r['fit_supports'] == r['true_supports'] for r in st])} | "
+            f"{share([r['model_separate'] for r in st])} / {share([r['model_same'] for r in st])} |")
+    return "\n".join(lines)

@@ -109,6 +109,8 @@ def register(commands, bench) -> None:
     q.add_argument("--categories", metavar="C1,C2",
                    help="with --procedural: only these categories (comma-separated), e.g. chair,table")
     q.add_argument("--meshes", metavar="DIR", help="with --procedural: write each fitted mesh to DIR/SHAPE_ID.obj")
+    q.add_argument("--split", choices=("train", "val", "test"), default=None,
+                   help="with --procedural: the split whose first N shapes are fitted (default train)")
     q.add_argument("--views", type=positive_int, default=8)
     q.add_argument("--iters", type=positive_int, default=None, help="Adam iterations (default 300)")
     q.add_argument("--level", type=int_in(0, 5), default=None, help="icosphere level of the template (default 3)")

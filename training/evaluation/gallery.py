@@ -139,6 +139,96 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
     return Path(out)
 
 
+def _framed_render(mesh, azimuth: float, elevation: float, size: int) -> np.ndarray:
+    """``mesh`` seen from (azimuth, elevation), framed on itself as the data's views are framed on their shape."""
+    from engine.camera import frame_camera, look_at
+
+    return _render(mesh, frame_camera(look_at(azimuth, elevation), np.asarray(mesh.vertices)), size)
+
+
+def ceiling_images(models_dir: str | Path, data_dir: str | Path, fit_dirs: dict[str, str | Path],
+                   shape_ids: list[str], *, azimuth: float = 45.0, elevation: float = 30.0, turn: float = 90.0,
+                   size: int = 128, threads: int = 2, mirror_average: bool = True) -> list[dict]:
+    """The rows of :func:`ceiling_sheet`: for each shape ``shape_id``, ``azimuth`` / ``elevation`` of its drawing and
+    ``images`` {column title: (S, S) image in [0, 1]}."""
+    import trimesh
+
+    from engine.mesh import Mesh
+    from engine.pipeline import SketchEngine
+    from training.data.dataset import ShapeViewDataset
+    from training.evaluation.evaluate import world_vertices
+
+    test = ShapeViewDataset(Path(data_dir), "test", extra_views=0, augment_strength=0.0)
+    angles: dict[str, dict[int, tuple[float, float]]] = {}
+    for r in test.manifest["views"]:
+        angles.setdefault(r["shape_id"], {})[int(r["view"])] = (float(r["azimuth"]), float(r["elevation"]))
+    index = {item: i for i, item in enumerate(test._items)}
+    shapes = {rec["shape_id"]: (si, rec) for si, rec in enumerate(test._shapes)}
+    missing = [s for s in shape_ids if s not in shapes]
+    if missing or not shape_ids:
+        raise GalleryError(f"no test shapes {', '.join(missing) or '(none given)'} in {data_dir}")
+    for label, folder in fit_dirs.items():
+        absent = [s for s in shape_ids if not (Path(folder) / f"{s}.obj").is_file()]
+        if absent:
+            raise GalleryError(f"{label}: no fitted mesh {', '.join(absent)} in {folder}")
+    engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average)
+    rows = []
+    for sid in shape_ids:
+        si, rec = shapes[sid]
+        by_view = angles[sid]
+        n = int(rec["num_views"])
+        v, _ = pick_views([by_view[k][0] for k in range(n)], [by_view[k][1] for k in range(n)], azimuth, elevation, turn)
+        az, el = by_view[v]
+        cams = test._cache.get(test._path(rec), "cameras")
+        sketch = test[index[(si, v)]]["sketch"][0].numpy()
+        pred = engine.predict(sketch)
+        world = Mesh(world_vertices(np.asarray(pred.mesh.vertices, np.float64), cams[v]), pred.mesh.faces)
+        images = {"drawing": 1.0 - sketch, "models' mesh": _framed_render(world, az + turn, el, size)}
+        for label, folder in fit_dirs.items():
+            tm = trimesh.load(Path(folder) / f"{sid}.obj", force="mesh", process=False)
+            images[label] = _framed_render(Mesh(tm.vertices, tm.faces), az + turn, el, size)
+        images["true shape"] = _framed_render(test.load_mesh(rec["category"], sid), az + turn, el, size)
+        rows.append({"shape_id": sid, "azimuth": az, "elevation": el, "images": images})
+    return rows
+
+
+def ceiling_sheet(models_dir: str | Path, data_dir: str | Path, fit_dirs: dict[str, str | Path],
+                  shape_ids: list[str], out: str | Path, **kw) -> Path:
+    """The models' mesh of a drawing beside the direct fits of the same shape (the ceiling) and the shape.
+
+    One row a test shape of ``data_dir`` named in ``shape_ids``: its drawing from the view nearest (``azimuth``,
+    ``elevation``), the mesh ``models_dir`` makes of it (the app's engine, mirror averaged unless
+    ``mirror_average=False``), each fit of ``fit_dirs`` (label -> folder of ``bench fit --procedural --meshes``
+    OBJs, ``SHAPE_ID.obj``) and the true shape, all from ``turn`` degrees of azimuth further round at the drawing's
+    elevation, each framed on itself (keywords: :func:`ceiling_images`). Writes the PNG atomically.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = ceiling_images(models_dir, data_dir, fit_dirs, shape_ids, **kw)
+    cols = list(rows[0]["images"])
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(1.8 * len(cols), 1.8 * len(rows)), dpi=100,
+                             squeeze=False)
+    for r, row in enumerate(rows):
+        for c, title in enumerate(cols):
+            ax = axes[r, c]
+            ax.imshow(row["images"][title], cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(title, fontsize=8)
+            if c == 0:
+                ax.set_ylabel(f"{row['shape_id']}\naz {row['azimuth']:g}, el {row['elevation']:g}", fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    plt.close(fig)
+    atomic_write_bytes(out, buf.getvalue())
+    return Path(out)
+
+
 def main_gallery(args: argparse.Namespace) -> int:
     from engine.models import resolve_models_dir
 
@@ -151,4 +241,4 @@ def main_gallery(args: argparse.Namespace) -> int:
     return 0
 
 
-__all__ = ["GalleryError", "main_gallery", "make_gallery", "pick_views", "shade"]
+__all__ = ["GalleryError", "ceiling_images", "ceiling_sheet", "main_gallery", "make_gallery", "pick_views", "shade"]
