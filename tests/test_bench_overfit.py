@@ -65,6 +65,15 @@ def test_bench_overfit_cli_end_to_end(data, tmp_path, capsys):
     assert rec["config"]["extra_views"] == 1 and rec["config"]["mode"] == "mesh"
     for row in rec["fit"] + rec["predictor"]:
         assert 0.0 <= row["silhouette_iou"] <= 1.0 and 0.0 <= row["voxel_iou"] <= 1.0
+    # the supports: the shape's own count as the metric gives it, the shares of predicted views in [0, 1]
+    from training.evaluation.metrics import solid_voxels, support_count
+
+    ds = ShapeViewDataset(data, "train", extra_views=0, augment_strength=0.0)
+    for row in rec["predictor"]:
+        assert row["true_supports"] == support_count(solid_voxels(ds.load_mesh(row["category"], row["shape_id"])))
+        assert 0.0 <= row["same"] <= 1.0 and 0.0 <= row["separate"] <= 1.0
+    assert all(isinstance(r["supports"], int) and r["supports"] >= 0 for r in rec["fit"])
+    assert "supports" in text and "pred " in text
     # 40 direct-fit iterations already match these simple shapes' outlines closely
     assert min(r["silhouette_iou"] for r in rec["fit"]) > 0.8
     assert abs(rec["gap"] - (np.mean([r["silhouette_iou"] for r in rec["fit"]])

@@ -90,7 +90,7 @@ def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = No
     import torch
 
     from training.evaluation.evaluate import world_vertices
-    from training.evaluation.metrics import voxel_iou
+    from training.evaluation.metrics import solid_voxels, support_count, voxel_iou
     from training.loop.trainer import load_run, write_png
     from training.render import rasterize
 
@@ -106,13 +106,18 @@ def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = No
         with torch.no_grad():
             local, glob = predictor(inp)
             verts = predictor.vertices(local, glob).double().numpy()
-        ious, vox = [], []
+        ious, vox, sup = [], [], []
+        true_supports = support_count(solid_voxels(mesh, surface=voxel_surface))
         for k, v in enumerate(views):
             world = world_vertices(verts[k], cams[v])
+            pred = Mesh(world.astype(np.float32), faces)
             ious.append(float(silhouette_ious(world, faces, cams, sils).mean()))
-            vox.append(voxel_iou(Mesh(world.astype(np.float32), faces), mesh, surface=voxel_surface))
+            vox.append(voxel_iou(pred, mesh, surface=voxel_surface))
+            sup.append(support_count(solid_voxels(pred, surface=voxel_surface)))
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(ious)),
-                     "voxel_iou": float(np.mean(vox))})
+                     "voxel_iou": float(np.mean(vox)), "true_supports": true_supports,
+                     "separate": float(np.mean([n >= 2 for n in sup])) if sup else float("nan"),
+                     "same": float(np.mean([n == true_supports for n in sup])) if sup else float("nan")})
         if sheet is not None and views and views[0] == 0:
             shown = [v for v in SHEET_VIEWS if v < len(cams)]
             world = torch.from_numpy(world_vertices(verts[0], cams[0]))[None].expand(len(shown), -1, -1)
@@ -137,7 +142,7 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
     """
     from training.bench.fit import fit_mesh
     from training.data.mesh_cache import CACHE_DIR
-    from training.evaluation.metrics import voxel_iou
+    from training.evaluation.metrics import solid_voxels, support_count, voxel_iou
 
     shapes = [sid for _, sid, _ in dataset.shapes()]
     # the voxel measure is always part of the key: rows scored by cell centres are never reused for the surface measure
@@ -158,9 +163,10 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
         res = fit_mesh(mesh, views=views, iters=iters, seed=seed, progress=progress, **fit_kwargs)
         fitted = res.mesh  # the normalised target frame, which the dataset's meshes are already in
         ious = silhouette_ious(fitted.vertices, fitted.faces, cams, sils)
+        surface = fit_kwargs.get("voxel_surface", True)
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(ious.mean()),
-                     "voxel_iou": voxel_iou(fitted, mesh, surface=fit_kwargs.get("voxel_surface", True)),
-                     "seconds": res.seconds})
+                     "voxel_iou": voxel_iou(fitted, mesh, surface=surface),
+                     "supports": support_count(solid_voxels(fitted, surface=surface)), "seconds": res.seconds})
     try:
         cache_path.parent.mkdir(exist_ok=True)
         atomic_write_text(cache_path, json.dumps({**(cached if isinstance(cached, dict) else {}), key: rows}) + "\n")
@@ -169,11 +175,23 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
     return rows
 
 
+def _supports_cell(fit: dict, pred: dict) -> str:
+    """'fit N, pred A / B': the fit's support count (when its row has one) and the shares of the predictor's views whose
+    mesh stands on two or more / on the shape's own count (when its row has them), against the shape's count."""
+    if "true_supports" not in pred:
+        return ""
+    fit_n = f"fit {fit['supports']}, " if "supports" in fit else ""
+    return f"{pred['true_supports']}: {fit_n}pred {pred['separate']:.2f} / {pred['same']:.2f}"
+
+
 def format_table(fit_rows: list[dict], pred_rows: list[dict]) -> str:
-    lines = [f"{'shape':<22} {'fit sil':>8} {'pred sil':>8} {'gap':>7} {'fit vox':>8} {'pred vox':>8}"]
+    """The per-shape table of fit against predictor (silhouette gap, voxel IoU; the supports: the shape's count, the
+    fit's, and the shares of predicted views on two or more / on as many), then the means."""
+    lines = [f"{'shape':<22} {'fit sil':>8} {'pred sil':>8} {'gap':>7} {'fit vox':>8} {'pred vox':>8}  supports"]
     for f, p in zip(fit_rows, pred_rows):
         lines.append(f"{f['shape_id']:<22} {f['silhouette_iou']:>8.3f} {p['silhouette_iou']:>8.3f} "
-                     f"{f['silhouette_iou'] - p['silhouette_iou']:>7.3f} {f['voxel_iou']:>8.3f} {p['voxel_iou']:>8.3f}")
+                     f"{f['silhouette_iou'] - p['silhouette_iou']:>7.3f} {f['voxel_iou']:>8.3f} {p['voxel_iou']:>8.3f}"
+                     f"  {_supports_cell(f, p)}")
     fs = float(np.mean([r["silhouette_iou"] for r in fit_rows]))
     ps = float(np.mean([r["silhouette_iou"] for r in pred_rows]))
     fv = float(np.mean([r["voxel_iou"] for r in fit_rows]))
