@@ -231,6 +231,12 @@
 #   the validation table favours for it (0.6), plain06-v56 and eval-plain06-*-v56 that threshold without mirror
 #   routing; ship-mirror-v56 bundles it; latency-bundle-v56, tradeoff-bundle-v56, mirror-cost-v56
 #   time it and docs-v56 draws the README's gallery and plot.
+# The chair's ceiling (OUT57 [out/v57]): fit-chair-v57 fits the sphere directly to the first FIT57_SHAPES [8] training
+#   chairs (and tables) at each "RESOLUTION LEVEL" of FIT57_CONFIGS: is the direct fit's chair (0.36 voxel IoU, legs
+#   webbed into a skirt) held back by the 64 x 64 silhouettes or by the 642-vertex sphere? fit-test-v57 fits the test
+#   benches, chairs and tables (DATA36A's) as the app's models are scored on them, and ceiling-v57 sets each fit beside
+#   the thirty-sixth bundle's meshes of the same shape's drawings (eval-mirror06-clean-v56): its table and sheet.
+#   overfit-chairs-v57: the guide's overfit check on fit-chair-v57's chairs alone: can the predictor learn their legs?
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -425,6 +431,7 @@ RUNS55=${RUNS55:-runs/v55}
 BUNDLE55=${BUNDLE55:-out/v55/models_bundle34}  # the thirty-fourth bundle (bundle34-v55), whose routing the v55 steps measure
 OUT56=${OUT56:-out/v56}
 BUNDLE56=${BUNDLE56:-out/v56/models_bundle35}  # the thirty-fifth bundle (bundle35-v56), which the v56 steps route both ways
+OUT57=${OUT57:-out/v57}
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -4488,6 +4495,80 @@ PY
       for s in predictor-v10-more val-v10-more val-strong-v10-more val-side-v10-more val-gt-v10-more eval-v10-more \
                eval-strong-v10-more eval-side-v10-more eval-gt-v10-more export-v10-more tradeoff-v10-more gallery-v2 \
                compare-v10-more ship-v2 refine-v2 docs-v2; do step "$s"; done ;;
+    fit-chair-v57)  # the direct fit (bench fit, 8 views, 1,000 iterations, damping 4) of the first FIT57_SHAPES [8]
+      # training shapes of FIT57_CATEGORIES [chair] at each "RESOLUTION LEVEL" of FIT57_CONFIGS [64 3;128 3;64 4;128 4]
+      # (silhouette and normal images of RESOLUTION pixels, the icosphere at LEVEL: 642 vertices at 3, 2,562 at 4), with
+      # the supports each fit stands on, into OUT57/fit_<categories>_r<RESOLUTION>_l<LEVEL>.json and its meshes
+      # (one thread a fit; two configurations at a time on two cores)
+      mkdir -p "$OUT57"
+      local cfg r l tag pids=() cats=${FIT57_CATEGORIES:-chair}
+      IFS=';' read -ra cfgs <<< "${FIT57_CONFIGS:-64 3;128 3;64 4;128 4}"
+      for cfg in "${cfgs[@]}"; do
+        read -r r l <<< "$cfg"
+        tag=${cats//,/_}_r${r}_l$l
+        sketchmesh bench fit --procedural "${FIT57_SHAPES:-8}" --categories "$cats" --resolution "$r" --level "$l" \
+          --meshes "$OUT57/meshes_$tag" --json "$OUT57/fit_$tag.json" > "$OUT57/fit_$tag.txt" 2>&1 &
+        pids+=($!)
+        if [ ${#pids[@]} -ge 2 ]; then wait "${pids[0]}"; pids=("${pids[@]:1}"); fi
+      done
+      for r in "${pids[@]}"; do wait "$r"; done
+      grep -h -A30 '^fit:' "$OUT57"/fit_"${cats//,/_}"_r*.txt ;;
+    fit-test-v57)  # the direct fit (as fit-chair-v57 at 64 3) of every test bench, chair and table of DATA36A (the
+      # procedural library's test shapes below index 100: as many a category as DATA36A holds) into
+      # OUT57/fit_test_<category>.json and its meshes (one thread a fit, two categories at a time; about 12 min)
+      mkdir -p "$OUT57"
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      local c n pids=()
+      for c in "${LEGS[@]}"; do
+        n=$(python3 -c "import json,sys; print(sum(s['category'] == sys.argv[2] for s in json.load(open(sys.argv[1]))['shapes']))" \
+          "$DATA36A/manifest.json" "$c")
+        sketchmesh bench fit --procedural "$n" --split test --categories "$c" --meshes "$OUT57/meshes_test" \
+          --json "$OUT57/fit_test_$c.json" > "$OUT57/fit_test_$c.txt" 2>&1 &
+        pids+=($!)
+        if [ ${#pids[@]} -ge 2 ]; then wait "${pids[0]}"; pids=("${pids[@]:1}"); fi
+      done
+      for c in "${pids[@]}"; do wait "$c"; done
+      grep -h -A20 '^fit:' "$OUT57"/fit_test_*.txt ;;
+    ceiling-v57)  # fit-test-v57's fits beside the thirty-sixth bundle's meshes of the same shapes' clean drawings (every
+      # test view, mirror averaged: eval-mirror06-clean-v56's record) into OUT57/ceiling.md, and the sheet of
+      # CEILING57_SHAPES [the test chairs and tables on three or more supports] (drawing, the bundle's mesh, the fit, the
+      # shape) into OUT57/ceiling.png and docs/ceiling_legged.png (seconds)
+      local c
+      for c in "${LEGS[@]}"; do [ -f "$OUT57/fit_test_$c.json" ] || { step fit-test-v57; break; }; done
+      [ -f "$OUT56/mirror06_clean/eval_models_test.json" ] || step eval-mirror06-clean-v56
+      [ -f "$OUT56/models_mirror06/router.onnx" ] || step mirror06-v56
+      python3 - "$OUT57" "$OUT56/mirror06_clean/eval_models_test.json" "$OUT56/models_mirror06" "$DATA36A" \
+        "${CEILING57_SHAPES:-}" "${LEGS[@]}" <<'PY'
+import json, sys
+from pathlib import Path
+from engine.fileio import atomic_write_text
+from training.bench.fit import ceiling_rows, ceiling_table
+from training.evaluation.gallery import ceiling_sheet
+out, ev, models, data, chosen = Path(sys.argv[1]), sys.argv[2], sys.argv[3], sys.argv[4], sys.argv[5].split()
+cats = sys.argv[6:]
+record = json.load(open(ev))
+column = next(c for c in record["columns"] if c != "template")
+fits = [json.load(open(out / f"fit_test_{c}.json")) for c in cats]
+rows = ceiling_rows(fits, record, column)
+table = ceiling_table(rows)
+atomic_write_text(out / "ceiling.md", f"direct fit (8 views, 1,000 iterations, 64 px, damping 4) against {column} "
+                  f"({ev}), every test view, clean\n\n{table}\n")
+print(table)
+if not chosen:  # the legged chairs and tables, whose legs the bundle misses most
+    chosen = [r["shape_id"] for r in rows if r["category"] in ("chair", "table") and r["true_supports"] >= 3]
+print(ceiling_sheet(models, data, {"direct fit": out / "meshes_test"}, chosen, out / "ceiling.png"))
+PY
+      cp "$OUT57/ceiling.png" docs/ceiling_legged.png ;;
+    overfit-chairs-v57)  # can the predictor learn chairs' legs among chairs? overfit-table-v31's check (the default
+      # predictor on true normal images, OVERFIT57_MINUTES [40] min, the cosine over OVERFIT57_ITERS [5600] iterations:
+      # what 40 minutes hold on this machine's two cores at 2.4 a second, about 23,000 samples a chair, more than the
+      # 17,000 that stood the table on legs among 13 shapes in overfit-long-v32; against each shape's direct fit at
+      # damping 4) on the first 8 training chairs (fit-chair-v57's) rendered at the training data's elevations (0, 15,
+      # 30, 45; 96 views each), into OUT57/overfit_chairs
+      [ -f "$OUT57/chairs8/manifest.json" ] || sketchmesh data --source procedural --categories chair \
+        --shapes-per-category 9 --splits train --elevations 0 15 30 45 --out "$OUT57/chairs8"  # index 1 is a test shape
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chairs" --data "$OUT57/chairs8" --shapes 8 \
+        --minutes "${OVERFIT57_MINUTES:-40}" --iters "${OVERFIT57_ITERS:-5600}" --fit-smoothing 4 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
