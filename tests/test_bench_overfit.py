@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -73,7 +74,7 @@ def test_bench_overfit_cli_end_to_end(data, tmp_path, capsys):
         assert row["true_supports"] == support_count(solid_voxels(ds.load_mesh(row["category"], row["shape_id"])))
         assert 0.0 <= row["same"] <= 1.0 and 0.0 <= row["separate"] <= 1.0
     assert all(isinstance(r["supports"], int) and r["supports"] >= 0 for r in rec["fit"])
-    assert "supports" in text and "pred " in text
+    assert re.search(r"\d+: fit \d+, pred \d\.\d\d / \d\.\d\d", text)  # a shape's row: its count, the fit's, the shares
     # 40 direct-fit iterations already match these simple shapes' outlines closely
     assert min(r["silhouette_iou"] for r in rec["fit"]) > 0.8
     assert abs(rec["gap"] - (np.mean([r["silhouette_iou"] for r in rec["fit"]])
@@ -90,6 +91,21 @@ def test_bench_overfit_cli_end_to_end(data, tmp_path, capsys):
                  "--set", "predictor_channels=8", "--set", "predictor_latent=32", "--set", "predictor_arch=compact"]) == 0
     rec2 = json.loads((out2 / "overfit.json").read_text())
     assert rec2["fit"] == rec["fit"] and rec2["config"]["predictor_arch"] == "compact"
+
+
+def test_format_table_shows_the_supports_it_has():
+    """A fit row without a support count (a row format before they were counted) leaves the fit's count out; a
+    predictor row without them leaves the column empty."""
+    from training.bench.overfit import format_table
+
+    fit = {"shape_id": "chair_00000", "silhouette_iou": 0.9, "voxel_iou": 0.5}
+    pred = {"shape_id": "chair_00000", "silhouette_iou": 0.8, "voxel_iou": 0.4, "true_supports": 4, "separate": 0.5,
+            "same": 0.25}
+    row = format_table([{**fit, "supports": 3}], [pred]).splitlines()[1]
+    assert row.endswith("4: fit 3, pred 0.50 / 0.25") and " 0.100 " in row  # the gap 0.9 - 0.8
+    assert format_table([fit], [pred]).splitlines()[1].endswith("4: pred 0.50 / 0.25")
+    bare = {k: pred[k] for k in ("shape_id", "silhouette_iou", "voxel_iou")}
+    assert format_table([fit], [bare]).splitlines()[1].endswith("0.400  ")
 
 
 def test_bench_overfit_bad_input(tmp_path, capsys):

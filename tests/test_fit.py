@@ -279,7 +279,7 @@ def test_ceiling_rows_pair_each_fit_with_the_models_drawings():
     def view(iou, sup):
         return {"iou": {col: iou, "template": 0.1}, "supports": {col: sup}}
 
-    evaluation = {"rows": [
+    evaluation = {"columns": [col, "template"], "voxel_resolution": 32, "voxel_surface": True, "rows": [
         {"category": "chair", "shape_id": "chair_00018", "true_supports": 4,
          "per_view": [view(0.2, 1), view(0.4, 4), view(0.3, 2), {"iou": {col: None}, "supports": {col: None}}]},
         {"category": "chair", "shape_id": "chair_00019", "true_supports": 1, "per_view": [view(0.6, 1)]},
@@ -292,6 +292,14 @@ def test_ceiling_rows_pair_each_fit_with_the_models_drawings():
     assert (r["fit_voxel_iou"], r["fit_supports"], r["true_supports"]) == (0.5, 4, 4)
     table = ceiling_table(rows)
     assert "| chair | 2 | 0.600 | 0.450 | 1 | 1.00 / 1.00 | 0.67 / 0.33 |" in table
+    with pytest.raises(SketchmeshError, match="no model column 'template'"):
+        ceiling_rows(fits, evaluation, "template")
+    with pytest.raises(SketchmeshError, match="not comparable"):  # the eval counted voxel centres only
+        ceiling_rows(fits, {**evaluation, "voxel_surface": False}, col)
+    with pytest.raises(SketchmeshError, match="not comparable"):
+        ceiling_rows(fits, {**evaluation, "voxel_resolution": 64}, col)
+    with pytest.raises(SketchmeshError, match="no support counts"):
+        ceiling_rows([{"shapes": [{k: v for k, v in fits[0]["shapes"][0].items() if k != "supports"}]}], evaluation, col)
     evaluation["rows"][1]["true_supports"] = 3  # another shape under the same name
     with pytest.raises(SketchmeshError, match="chair_00019"):
         ceiling_rows(fits, evaluation, col)

@@ -676,5 +676,7 @@ def test_ceiling_sheet_sets_the_fits_beside_the_models_mesh_and_the_shape(run_di
     assert Image.open(out).size == (720, 360)  # 4 columns x 2 rows of 1.8 inches at 100 dpi
     with pytest.raises(GalleryError, match="no fitted mesh"):
         ceiling_images(exported, data, {"fit": tmp_path}, ids, size=48, threads=1)
+    with pytest.raises(GalleryError, match="true shape"):
+        ceiling_images(exported, data, {"true shape": fits}, ids, size=48, threads=1)
     with pytest.raises(GalleryError, match="nosuch_00000"):
         ceiling_images(exported, data, {"fit": fits}, ["nosuch_00000"], size=48, threads=1)

@@ -232,7 +232,7 @@
 #   routing; ship-mirror-v56 bundles it; latency-bundle-v56, tradeoff-bundle-v56, mirror-cost-v56
 #   time it and docs-v56 draws the README's gallery and plot.
 # The chair's ceiling (OUT57 [out/v57]): fit-chair-v57 fits the sphere directly to the first FIT57_SHAPES [8] training
-#   chairs (and tables) at each "RESOLUTION LEVEL" of FIT57_CONFIGS: is the direct fit's chair (0.36 voxel IoU, legs
+#   chairs at each "RESOLUTION LEVEL" of FIT57_CONFIGS: is the direct fit's chair (0.36 voxel IoU, legs
 #   webbed into a skirt) held back by the 64 x 64 silhouettes or by the 642-vertex sphere? fit-test-v57 fits the test
 #   benches, chairs and tables (DATA36A's) as the app's models are scored on them, and ceiling-v57 sets each fit beside
 #   the thirty-sixth bundle's meshes of the same shape's drawings (eval-mirror06-clean-v56): its table and sheet.
@@ -4501,7 +4501,7 @@ PY
       # the supports each fit stands on, into OUT57/fit_<categories>_r<RESOLUTION>_l<LEVEL>.json and its meshes
       # (one thread a fit; two configurations at a time on two cores)
       mkdir -p "$OUT57"
-      local cfg r l tag pids=() cats=${FIT57_CATEGORIES:-chair}
+      local cfg r l tag pids=() cats=${FIT57_CATEGORIES:-chair} cfgs
       IFS=';' read -ra cfgs <<< "${FIT57_CONFIGS:-64 3;128 3;64 4;128 4}"
       for cfg in "${cfgs[@]}"; do
         read -r r l <<< "$cfg"
@@ -4515,7 +4515,7 @@ PY
       grep -h -A30 '^fit:' "$OUT57"/fit_"${cats//,/_}"_r*.txt ;;
     fit-test-v57)  # the direct fit (as fit-chair-v57 at 64 3) of every test bench, chair and table of DATA36A (the
       # procedural library's test shapes below index 100: as many a category as DATA36A holds) into
-      # OUT57/fit_test_<category>.json and its meshes (one thread a fit, two categories at a time; about 12 min)
+      # OUT57/fit_test_<category>.json and its meshes (one thread a fit, two categories at a time; about 20 min)
       mkdir -p "$OUT57"
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
       local c n pids=()
@@ -4551,7 +4551,9 @@ column = next(c for c in record["columns"] if c != "template")
 fits = [json.load(open(out / f"fit_test_{c}.json")) for c in cats]
 rows = ceiling_rows(fits, record, column)
 table = ceiling_table(rows)
-atomic_write_text(out / "ceiling.md", f"direct fit (8 views, 1,000 iterations, 64 px, damping 4) against {column} "
+f = fits[0]
+atomic_write_text(out / "ceiling.md", f"direct fit ({f['views']} views, {f['iters']} iterations, {f['resolution']} px, "
+                  f"icosphere level {f['template_level']}, {f['settings'] or 'default settings'}) against {column} "
                   f"({ev}), every test view, clean\n\n{table}\n")
 print(table)
 if not chosen:  # the legged chairs and tables, whose legs the bundle misses most
@@ -4566,7 +4568,7 @@ PY
       # damping 4) on the first 8 training chairs (fit-chair-v57's) rendered at the training data's elevations (0, 15,
       # 30, 45; 96 views each), into OUT57/overfit_chairs
       [ -f "$OUT57/chairs8/manifest.json" ] || sketchmesh data --source procedural --categories chair \
-        --shapes-per-category 9 --splits train --elevations 0 15 30 45 --out "$OUT57/chairs8"  # index 1 is a test shape
+        --shapes-per-category 9 --splits train --elevations 0 15 30 45 --out "$OUT57/chairs8"  # index 1 is not a training shape
       sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chairs" --data "$OUT57/chairs8" --shapes 8 \
         --minutes "${OVERFIT57_MINUTES:-40}" --iters "${OVERFIT57_ITERS:-5600}" --fit-smoothing 4 ;;
     all-v1)

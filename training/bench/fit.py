@@ -565,13 +565,29 @@ def ceiling_rows(fit_records: list[dict], eval_record: dict, column: str) -> lis
         One dict a fitted shape found in ``eval_record`` (in the fits' order): ``category``, ``shape_id``,
         ``true_supports``, ``fit_voxel_iou``, ``fit_supports``, ``drawings``, ``model_voxel_iou`` (the mean over its
         drawings), ``model_separate`` (the share of its drawings whose mesh stands on two or more supports) and
-        ``model_same`` (on as many as the shape). A shape the eval does not hold is left out; the fit's and the
-        eval's count of the shape's own supports must agree (the same shape, the same voxel grid).
+        ``model_same`` (on as many as the shape). A shape the eval does not hold is left out.
+
+    Raises:
+        SketchmeshError: ``column`` is not one of the eval's model columns; a record measures voxels on another grid
+            (resolution or surface cells) than the other; a fit row has no support counts (a record written before
+            they were counted); the fit's and the eval's count of a shape's own supports differ (not the same
+            shape); or no drawing of a fitted shape has a score in ``column``.
     """
+    columns = [c for c in eval_record.get("columns", []) if c != "template"]
+    if column not in columns:
+        raise SketchmeshError(f"no model column {column!r} in the eval record (its columns: {', '.join(columns)})")
+    eval_grid = (int(eval_record.get("voxel_resolution", DEFAULT_VOXEL_RESOLUTION)),
+                 bool(eval_record.get("voxel_surface", True)))
     by_id = {r["shape_id"]: r for r in eval_record["rows"]}
     out = []
     for rec in fit_records:
+        fit_grid = (DEFAULT_VOXEL_RESOLUTION, (rec.get("settings") or {}).get("voxel_surface", True) is not False)
+        if fit_grid != eval_grid:
+            raise SketchmeshError(f"the fits count voxels at {fit_grid[0]}^3 with surface cells {fit_grid[1]}, the "
+                                  f"eval at {eval_grid[0]}^3 with surface cells {eval_grid[1]}: not comparable")
         for f in rec["shapes"]:
+            if "supports" not in f or "target_supports" not in f:
+                raise SketchmeshError(f"{f.get('shape_id')}: the fit record has no support counts (rerun bench fit)")
             e = by_id.get(f["shape_id"])
             if e is None:
                 continue

@@ -147,7 +147,8 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
     shapes = [sid for _, sid, _ in dataset.shapes()]
     # the voxel measure is always part of the key: rows scored by cell centres are never reused for the surface measure
     measure = "surface" if fit_kwargs.get("voxel_surface", True) else "centres"
-    key = json.dumps({"shapes": shapes, "iters": iters, "views": views, "seed": seed, "voxels": measure,
+    # "rows": 2 since the rows carry the fit's supports: rows cached before are fitted again rather than shown without them
+    key = json.dumps({"shapes": shapes, "iters": iters, "views": views, "seed": seed, "voxels": measure, "rows": 2,
                       **{k: v for k, v in fit_kwargs.items() if k != "voxel_surface"}}, sort_keys=True)
     cache_path = Path(dataset.root) / CACHE_DIR / "overfit_fit.json"
     try:

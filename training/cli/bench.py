@@ -105,14 +105,15 @@ def register(commands, bench) -> None:
     ))
     q.add_argument("--target", metavar="MESH_FILE", help="target mesh file")
     q.add_argument("--procedural", type=int_in(1, 1000), metavar="N",
-                   help="instead of --target: fit N procedural training shapes of every category and print the means")
+                   help="instead of --target: fit the first N procedural shapes of the split (--split, default train) of "
+                        "every category (--categories: of those) and print the means")
     q.add_argument("--categories", metavar="C1,C2",
                    help="with --procedural: only these categories (comma-separated), e.g. chair,table")
     q.add_argument("--meshes", metavar="DIR", help="with --procedural: write each fitted mesh to DIR/SHAPE_ID.obj")
     q.add_argument("--split", choices=("train", "val", "test"), default=None,
                    help="with --procedural: the split whose first N shapes are fitted (default train)")
     q.add_argument("--views", type=positive_int, default=8)
-    q.add_argument("--iters", type=positive_int, default=None, help="Adam iterations (default 300)")
+    q.add_argument("--iters", type=positive_int, default=None, help="Adam iterations (default 1000)")
     q.add_argument("--level", type=int_in(0, 5), default=None, help="icosphere level of the template (default 3)")
     q.add_argument("--template", choices=TEMPLATE_SHAPES, default=None,
                    help="the template's shape: the icosphere (default), or the icosphere with four legs")

@@ -9,6 +9,9 @@ dataset's view nearest it; the column title gives the turn), and the ground-trut
 that second view. The models run through
 :class:`engine.pipeline.SketchEngine` (the app's path); meshes are drawn with the project's
 rasterizer and Lambert-shaded from their normals.
+
+:func:`ceiling_sheet` draws another sheet: the models' mesh of a test drawing beside direct fits of the same shape
+(``bench fit --procedural --meshes``, the predictor's ceiling) and the shape (``reproduce_models.sh ceiling-v57``).
 """
 
 from __future__ import annotations
@@ -68,11 +71,6 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
                  turn: float = 90.0, size: int = 160, threads: int = 2, mirror_average: bool = False,
                  repair_folds: bool = False) -> Path:
     """Write the gallery PNG (see the module docstring); angles in degrees."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from engine.mesh import Mesh
     from engine.pipeline import SketchEngine
     from training.data.dataset import ShapeViewDataset
@@ -99,8 +97,8 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
         raise GalleryError(f"no test shapes in {data_dir}" + (f" for categories {', '.join(categories)}" if categories else ""))
     engine = SketchEngine(models_dir, threads=threads, cache_size=0, mirror_average=mirror_average,
                           repair_folds=repair_folds)
-    fig, axes = plt.subplots(len(rows), 5, figsize=(2.0 * 5, 2.0 * len(rows)), dpi=100, squeeze=False)
-    for r, (i, second) in enumerate(rows):
+    grid, titles, labels = [], (), []
+    for i, second in rows:
         item = test[i]
         si, v = test._items[i]
         rec = test._shapes[si]
@@ -122,15 +120,33 @@ def make_gallery(models_dir: str | Path, data_dir: str | Path, out: str | Path, 
             _render(world, cam_2, size),
             _render(gt, cam_2, size),
         )
+        grid.append(images)
+        titles = titles or cols
+        labels.append(f"{rec['category']}\naz {az_1:g}, el {el_1:g}")
+    return _write_grid(out, grid, list(titles), labels, inches=2.0, fontsize=9)
+
+
+def _write_grid(out: str | Path, grid: list, titles: list[str], labels: list[str], *, inches: float,
+                fontsize: int) -> Path:
+    """A PNG of images in rows (grey when 2-D), ``titles`` over the first row's columns, ``labels`` beside each row,
+    ``inches`` a cell at 100 dpi; written atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(grid), len(titles), figsize=(inches * len(titles), inches * len(grid)), dpi=100,
+                             squeeze=False)
+    for r, images in enumerate(grid):
         for c, img in enumerate(images):
             ax = axes[r, c]
             ax.imshow(img, cmap="gray" if img.ndim == 2 else None, vmin=0, vmax=1, interpolation="antialiased")
             ax.set_xticks([])
             ax.set_yticks([])
             if r == 0:
-                ax.set_title(cols[c], fontsize=9)
+                ax.set_title(titles[c], fontsize=fontsize)
             if c == 0:
-                ax.set_ylabel(f"{rec['category']}\naz {az_1:g}, el {el_1:g}", fontsize=9)
+                ax.set_ylabel(labels[r], fontsize=fontsize)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
@@ -167,6 +183,9 @@ def ceiling_images(models_dir: str | Path, data_dir: str | Path, fit_dirs: dict[
     missing = [s for s in shape_ids if s not in shapes]
     if missing or not shape_ids:
         raise GalleryError(f"no test shapes {', '.join(missing) or '(none given)'} in {data_dir}")
+    clash = [label for label in fit_dirs if label in ("drawing", "models' mesh", "true shape")]
+    if clash:
+        raise GalleryError(f"a fit's label cannot be a column of its own: {', '.join(clash)}")
     for label, folder in fit_dirs.items():
         absent = [s for s in shape_ids if not (Path(folder) / f"{s}.obj").is_file()]
         if absent:
@@ -202,31 +221,11 @@ def ceiling_sheet(models_dir: str | Path, data_dir: str | Path, fit_dirs: dict[s
     OBJs, ``SHAPE_ID.obj``) and the true shape, all from ``turn`` degrees of azimuth further round at the drawing's
     elevation, each framed on itself (keywords: :func:`ceiling_images`). Writes the PNG atomically.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     rows = ceiling_images(models_dir, data_dir, fit_dirs, shape_ids, **kw)
-    cols = list(rows[0]["images"])
-    fig, axes = plt.subplots(len(rows), len(cols), figsize=(1.8 * len(cols), 1.8 * len(rows)), dpi=100,
-                             squeeze=False)
-    for r, row in enumerate(rows):
-        for c, title in enumerate(cols):
-            ax = axes[r, c]
-            ax.imshow(row["images"][title], cmap="gray", vmin=0, vmax=1, interpolation="antialiased")
-            ax.set_xticks([])
-            ax.set_yticks([])
-            if r == 0:
-                ax.set_title(title, fontsize=8)
-            if c == 0:
-                ax.set_ylabel(f"{row['shape_id']}\naz {row['azimuth']:g}, el {row['elevation']:g}", fontsize=8)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    plt.close(fig)
-    atomic_write_bytes(out, buf.getvalue())
-    return Path(out)
+    titles = list(rows[0]["images"])
+    return _write_grid(out, [[row["images"][t] for t in titles] for row in rows], titles,
+                       [f"{row['shape_id']}\naz {row['azimuth']:g}, el {row['elevation']:g}" for row in rows],
+                       inches=1.8, fontsize=8)
 
 
 def main_gallery(args: argparse.Namespace) -> int:
