@@ -10,7 +10,9 @@
 # What a call buys (model card, "What the table lacks among other shapes"): the overfit check stands the table on
 # legs among 13 shapes only after about 17,000 samples of it (overfit-long-v32), and the twenty-first's GPU stage (two
 # calls) gave each category about 42,000 spread over 600 shapes (the paper: 1.28 M a category), so the legged
-# categories need many calls resumed one after another; look at the legs (gallery) after each, not only the mean.
+# categories need many calls resumed one after another; look at the legs (gallery) after each, not only the mean,
+# against what the sphere reaches on the same test shapes (reproduce_models.sh ceiling-v57: the direct fit stands 5 of the
+# 8 standing test chairs on their own legs, the bundle 0.09 of their drawings).
 # Which batch: for the same samples the overfit check ends far behind at batch 512 (gap 0.203, the table a box; 0.183 at
 # four times the rate), between at 256 (0.112) and close to batch 32 at 128 (0.089 against 0.080; from the start on
 # this CPU, reproduce_models.sh compare-overfit-v33; at 128 the 40-minute run's samples pass the check with the table
