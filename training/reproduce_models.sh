@@ -237,6 +237,7 @@
 #   benches, chairs and tables (DATA36A's) as the app's models are scored on them, and ceiling-v57 sets each fit beside
 #   the thirty-sixth bundle's meshes of the same shape's drawings (eval-mirror06-clean-v56): its table and sheet.
 #   overfit-chairs-v57: the guide's overfit check on fit-chair-v57's chairs alone: can the predictor learn their legs?
+#   overfit-chair1-v57: the same on one of them alone.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4571,6 +4572,13 @@ PY
         --shapes-per-category 9 --splits train --elevations 0 15 30 45 --out "$OUT57/chairs8"  # index 1 is not a training shape
       sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chairs" --data "$OUT57/chairs8" --shapes 8 \
         --minutes "${OVERFIT57_MINUTES:-40}" --iters "${OVERFIT57_ITERS:-5600}" --fit-smoothing 4 ;;
+    overfit-chair1-v57)  # overfit-table-v31's one-shape check on one chair: chair_00007 (four legs under a ladder back,
+      # which its direct fit stands on its four legs, voxel 0.706) alone at the four elevations, 10 min, the cosine over
+      # 1,500 iterations (what 10 minutes hold here; the table alone passed with 1,550), into OUT57/overfit_chair1
+      [ -f "$OUT57/chair7/manifest.json" ] || sketchmesh data --source procedural --categories chair --first-shape 7 \
+        --shapes-per-category 1 --splits train --elevations 0 15 30 45 --out "$OUT57/chair7"
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chair1" --data "$OUT57/chair7" --shapes 1 \
+        --minutes 10 --iters 1500 --fit-smoothing 4 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
