@@ -237,7 +237,7 @@
 #   benches, chairs and tables (DATA36A's) as the app's models are scored on them, and ceiling-v57 sets each fit beside
 #   the thirty-sixth bundle's meshes of the same shape's drawings (eval-mirror06-clean-v56): its table and sheet.
 #   overfit-chairs-v57: the guide's overfit check on fit-chair-v57's chairs alone: can the predictor learn their legs?
-#   overfit-chair1-v57: the same on one of them alone.
+#   overfit-chair1-v57: the same on one of them alone; overfit-chair2-v57 on two, with as many samples of each.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4579,6 +4579,14 @@ PY
         --shapes-per-category 1 --splits train --elevations 0 15 30 45 --out "$OUT57/chair7"
       sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chair1" --data "$OUT57/chair7" --shapes 1 \
         --minutes 10 --iters 1500 --fit-smoothing 4 ;;
+    overfit-chair2-v57)  # overfit-chair1-v57's samples a chair on two chairs together: chair_00002 (three legs) and
+      # chair_00003 (four), which their direct fits stand on their own legs, at the four elevations, the cosine over 3,000
+      # iterations (48,000 samples each), 21 min at most: do two chairs need more than one's samples each? Into
+      # OUT57/overfit_chair2
+      [ -f "$OUT57/chair23/manifest.json" ] || sketchmesh data --source procedural --categories chair --first-shape 2 \
+        --shapes-per-category 2 --splits train --elevations 0 15 30 45 --out "$OUT57/chair23"
+      sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chair2" --data "$OUT57/chair23" --shapes 2 \
+        --minutes 21 --iters 3000 --fit-smoothing 4 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
