@@ -616,13 +616,12 @@ def ceiling_table(rows: list[dict]) -> str:
                      f"{r['model_voxel_iou']:.3f} / {r['model_separate']:.2f} / {r['model_same']:.2f} |")
     lines += ["", "| category | shapes | fit voxel | model voxel | standing shapes | fit on 2+ / on as many | "
               "model on 2+ / on as many |", "|---|---:|---:|---:|---:|---:|---:|"]
+    def share(vals):
+        return f"{np.mean(vals):.2f}" if vals else "-"
+
     for c in dict.fromkeys(r["category"] for r in rows):
         rs = [r for r in rows if r["category"] == c]
         st = [r for r in rs if r["true_supports"] >= 2]
-
-        def share(vals):
-            return f"{np.mean(vals):.2f}" if vals else "-"
-
         lines.append(
             f"| {c} | {len(rs)} | {np.mean([r['fit_voxel_iou'] for r in rs]):.3f} | "
             f"{np.mean([r['model_voxel_iou'] for r in rs]):.3f} | {len(st)} | "

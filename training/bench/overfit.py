@@ -90,7 +90,7 @@ def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = No
     import torch
 
     from training.evaluation.evaluate import world_vertices
-    from training.evaluation.metrics import solid_voxels, support_count, voxel_iou
+    from training.evaluation.metrics import grid_iou, solid_voxels, support_count
     from training.loop.trainer import load_run, write_png
     from training.render import rasterize
 
@@ -107,13 +107,14 @@ def score_predictor(run_dir: Path, dataset, input_views, sheet: Path | None = No
             local, glob = predictor(inp)
             verts = predictor.vertices(local, glob).double().numpy()
         ious, vox, sup = [], [], []
-        true_supports = support_count(solid_voxels(mesh, surface=voxel_surface))
+        gt_vox = solid_voxels(mesh, surface=voxel_surface)  # once a shape, each view's mesh once a view
+        true_supports = support_count(gt_vox)
         for k, v in enumerate(views):
             world = world_vertices(verts[k], cams[v])
-            pred = Mesh(world.astype(np.float32), faces)
+            pred_vox = solid_voxels(Mesh(world.astype(np.float32), faces), surface=voxel_surface)
             ious.append(float(silhouette_ious(world, faces, cams, sils).mean()))
-            vox.append(voxel_iou(pred, mesh, surface=voxel_surface))
-            sup.append(support_count(solid_voxels(pred, surface=voxel_surface)))
+            vox.append(grid_iou(pred_vox, gt_vox))
+            sup.append(support_count(pred_vox))
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(np.mean(ious)),
                      "voxel_iou": float(np.mean(vox)), "true_supports": true_supports,
                      "separate": float(np.mean([n >= 2 for n in sup])) if sup else float("nan"),
@@ -142,7 +143,7 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
     """
     from training.bench.fit import fit_mesh
     from training.data.mesh_cache import CACHE_DIR
-    from training.evaluation.metrics import solid_voxels, support_count, voxel_iou
+    from training.evaluation.metrics import grid_iou, solid_voxels, support_count
 
     shapes = [sid for _, sid, _ in dataset.shapes()]
     # the voxel measure is always part of the key: rows scored by cell centres are never reused for the surface measure
@@ -165,9 +166,10 @@ def score_fit(dataset, *, iters: int, views: int, seed: int, progress: bool, **f
         fitted = res.mesh  # the normalised target frame, which the dataset's meshes are already in
         ious = silhouette_ious(fitted.vertices, fitted.faces, cams, sils)
         surface = fit_kwargs.get("voxel_surface", True)
+        fit_vox = solid_voxels(fitted, surface=surface)  # once, for the IoU and the supports
         rows.append({"category": category, "shape_id": sid, "silhouette_iou": float(ious.mean()),
-                     "voxel_iou": voxel_iou(fitted, mesh, surface=surface),
-                     "supports": support_count(solid_voxels(fitted, surface=surface)), "seconds": res.seconds})
+                     "voxel_iou": grid_iou(fit_vox, solid_voxels(mesh, surface=surface)),
+                     "supports": support_count(fit_vox), "seconds": res.seconds})
     try:
         cache_path.parent.mkdir(exist_ok=True)
         atomic_write_text(cache_path, json.dumps({**(cached if isinstance(cached, dict) else {}), key: rows}) + "\n")

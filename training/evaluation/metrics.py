@@ -238,8 +238,12 @@ def voxel_iou(mesh_a: Mesh, mesh_b: Mesh, resolution: int = DEFAULT_VOXEL_RESOLU
     Returns:
         IoU in [0, 1]; 1.0 when both voxelisations are empty (identical).
     """
-    a = solid_voxels(mesh_a, resolution, surface)
-    b = solid_voxels(mesh_b, resolution, surface)
+    return grid_iou(solid_voxels(mesh_a, resolution, surface), solid_voxels(mesh_b, resolution, surface))
+
+
+def grid_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """IoU of two bool occupancy grids of one shape (e.g. :func:`solid_voxels`' output, voxelised once and reused);
+    1.0 when both are empty."""
     union = int(np.count_nonzero(a | b))
     if union == 0:
         return 1.0
