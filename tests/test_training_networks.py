@@ -16,6 +16,7 @@ from training.model.networks import (  # noqa: E402
     NormalGenerator,
     PatchDiscriminator,
     adversarial_loss,
+    basis_times,
     build_predictor,
     combinatorial_laplacian,
     downsample_normals,
@@ -25,6 +26,7 @@ from training.model.networks import (  # noqa: E402
     local_l1_loss,
     sample_bilinear,
     sample_edge_pixels,
+    sample_points,
     smoothing_operator,
     sobel_magnitude,
     view_frame_cameras,
@@ -668,6 +670,83 @@ def test_sample_bilinear_is_grid_sample_with_border_padding(size):
     (g_want,) = torch.autograd.grad((want * weights).sum(), maps)
     (g_got,) = torch.autograd.grad((got * weights).sum(), maps)
     torch.testing.assert_close(g_got, g_want, rtol=1e-12, atol=1e-12)
+
+
+def _trace(fn, args):
+    """torch.jit.trace (deprecated in favour of torch.export, but what sets torch.jit.is_tracing, as the ONNX
+    exporter the project uses does) without its deprecation warning."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return torch.jit.trace(fn, args)
+
+
+def test_sample_points_is_sample_bilinear_in_torch_and_its_gathers_when_traced():
+    """What the predictor samples with: in torch F.grid_sample, equal to sample_bilinear's gathers in value and in
+    the gradient of the maps (none reaches the grid); traced, the graph holds the gathers and no grid sampler."""
+    torch.manual_seed(4)
+    maps = torch.randn(3, 6, 9, 7, dtype=torch.float64, requires_grad=True)
+    grid = (torch.rand(3, 50, 2, dtype=torch.float64) * 2.6 - 1.3).requires_grad_()
+    got, want = sample_points(maps, grid), sample_bilinear(maps, grid)
+    torch.testing.assert_close(got, want, rtol=1e-12, atol=1e-12)
+    weights = torch.randn_like(want)
+    g_got = torch.autograd.grad((got * weights).sum(), maps)[0]
+    g_want = torch.autograd.grad((want * weights).sum(), maps)[0]
+    torch.testing.assert_close(g_got, g_want, rtol=1e-12, atol=1e-12)
+    assert not got.requires_grad or got.grad_fn is not None
+    assert torch.autograd.grad(sample_points(maps, grid).sum(), grid, allow_unused=True)[0] is None
+    traced = _trace(sample_points, (maps.detach(), grid.detach()))
+    kinds = {n.kind() for n in traced.graph.nodes()}
+    assert "aten::grid_sampler" not in kinds and "aten::index" in kinds
+    torch.testing.assert_close(traced(maps.detach(), grid.detach()), want.detach(), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [1, 4])
+def test_basis_times_is_the_broadcast_matmul(n):
+    """The basis product the predictor computes as one (V, M) x (M, 3N) product equals torch.matmul's broadcast
+    (V, M) @ (N, M, 3) in value and in both gradients; traced, it stays the broadcast matmul."""
+    torch.manual_seed(n)
+    basis = torch.randn(10, 7, dtype=torch.float64, requires_grad=True)
+    coeff = torch.randn(n, 7, 3, dtype=torch.float64, requires_grad=True)
+    got, want = basis_times(basis, coeff), torch.matmul(basis, coeff)
+    assert got.shape == (n, 10, 3)
+    torch.testing.assert_close(got, want, rtol=1e-12, atol=1e-12)
+    weights = torch.randn_like(want)
+    for a, b in zip(torch.autograd.grad((got * weights).sum(), (basis, coeff)),
+                    torch.autograd.grad((want * weights).sum(), (basis, coeff))):
+        torch.testing.assert_close(a, b, rtol=1e-12, atol=1e-12)
+    traced = _trace(basis_times, (basis.detach(), coeff.detach()))
+    assert "aten::matmul" in {node.kind() for node in traced.graph.nodes()}
+
+
+def test_predictor_trains_the_same_function_as_its_onnx_graph_form(monkeypatch):
+    """The larger predictor with its aligned branch, in torch (grid_sample, channels-last encoder, one basis
+    product) and in the form it is traced to for ONNX (gathers, contiguous images, broadcast matmul): the same
+    offsets and the same parameter gradients in float64, in training mode (BatchNorm on the batch)."""
+    import training.model.networks as networks
+
+    torch.manual_seed(8)
+    net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=12).double().train()
+    _trained_looking(net)
+    with torch.no_grad():
+        net.aligned_mlp[2].weight.normal_(std=0.5)
+    x = torch.rand(4, 3, 64, 64, dtype=torch.float64)
+    weights = torch.randn(4, net.basis.shape[0], 3, dtype=torch.float64)
+    results = []
+    for traced in (False, True):
+        monkeypatch.setattr(networks, "_traced", lambda traced=traced: traced)
+        net.zero_grad()
+        local, glob = net(x)
+        ((local + glob[:, None]) * weights).sum().backward()
+        results.append((local.detach(), glob.detach(), {k: p.grad.clone() for k, p in net.named_parameters()}))
+    (l0, g0, grads0), (l1, g1, grads1) = results
+    torch.testing.assert_close(l0, l1, rtol=1e-10, atol=1e-12)
+    torch.testing.assert_close(g0, g1, rtol=1e-10, atol=1e-12)
+    assert grads0.keys() == grads1.keys()
+    for k in grads0:
+        torch.testing.assert_close(grads0[k], grads1[k], rtol=1e-8, atol=1e-10, msg=k)
+    assert float(l0.abs().max()) > 0 and float(grads0["aligned_mlp.0.weight"].abs().sum()) > 0
 
 
 def test_aligned_branch_is_its_perceptron_on_the_concatenated_samples():

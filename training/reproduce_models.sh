@@ -433,6 +433,8 @@ BUNDLE55=${BUNDLE55:-out/v55/models_bundle34}  # the thirty-fourth bundle (bundl
 OUT56=${OUT56:-out/v56}
 BUNDLE56=${BUNDLE56:-out/v56/models_bundle35}  # the thirty-fifth bundle (bundle35-v56), which the v56 steps route both ways
 OUT57=${OUT57:-out/v57}
+OUT58=${OUT58:-out/v58}
+RUNS58=${RUNS58:-runs/v58}
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -4587,6 +4589,44 @@ PY
         --shapes-per-category 2 --splits train --elevations 0 15 30 45 --out "$OUT57/chair23"
       sketchmesh bench overfit --set normal_edges=true --out "$OUT57/overfit_chair2" --data "$OUT57/chair23" --shapes 2 \
         --minutes 21 --iters 3000 --fit-smoothing 4 ;;
+    speed-v58)  # the specialists' CPU training step (recipe20: the larger predictor with its aligned branch, batch 32,
+      # half mirrored, the mirror-consistency term; bench train, 3 warm-up and 20 timed steps on DATA36L's generated images)
+      # before and after the step's speed-ups: the code of commit BEFORE58 [5370e93] (its engine, training and sketchmesh
+      # from git, first on PYTHONPATH) and this one, alternating, twice each (run it alone), into
+      # OUT58/bench_train_{before,after}_{1,2}.json; then each run's step and stages side by side
+      [ -f "$DATA36L/.cache/generated/normals16_mirror/info.json" ] || step data-val-v56
+      local before="$OUT58/code_before" k tag
+      rm -rf "$before"; mkdir -p "$before" "$OUT58"
+      git archive "${BEFORE58:-5370e93}" engine training sketchmesh | tar -x -C "$before"
+      local set=(--set input_normals=normals16 --set mirror=0.5 --set mirror_consistency=50
+                 --set mirror_inputs=normals16_mirror --set predictor_aligned=128 --set predictor_channels=64
+                 --set predictor_hidden=1024 --set normal_edges=false)
+      for k in 1 2; do
+        for tag in before after; do
+          if [ "$tag" = before ]; then
+            PYTHONPATH="$before" python3 -P -m sketchmesh bench train --data "$DATA36L" --batch 32 --warmup 3 --steps 20 \
+              "${set[@]}" --json "$OUT58/bench_train_${tag}_$k.json" > /dev/null
+          else
+            sketchmesh bench train --data "$DATA36L" --batch 32 --warmup 3 --steps 20 "${set[@]}" \
+              --json "$OUT58/bench_train_${tag}_$k.json" > /dev/null
+          fi
+        done
+      done
+      python3 - "$OUT58" <<'PY'
+import json, sys
+from pathlib import Path
+out = Path(sys.argv[1])
+print("| run | step ms (median) | samples/s | predictor fwd / bwd ms | rasterizer + losses ms | CPU ms a step |")
+print("|---|---:|---:|---:|---:|---:|")
+for k in (1, 2):
+    for tag in ("before", "after"):
+        r = json.loads((out / f"bench_train_{tag}_{k}.json").read_text())
+        st = r["stages_ms"]
+        render = sum(st[s] for s in ("rasterizer_forward", "rasterizer_backward", "losses_forward", "losses_backward"))
+        print(f"| {tag} {k} | {r['step_ms_median']:.0f} | {r['samples_per_s']:.1f} | "
+              f"{st['predictor_forward']:.0f} / {st['predictor_backward']:.0f} | {render:.0f} | {r['step_cpu_ms']:.0f} |")
+PY
+      ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
