@@ -435,6 +435,9 @@ BUNDLE56=${BUNDLE56:-out/v56/models_bundle35}  # the thirty-fifth bundle (bundle
 OUT57=${OUT57:-out/v57}
 OUT58=${OUT58:-out/v58}
 RUNS58=${RUNS58:-runs/v58}
+DATA58N=${DATA58N:-data/legs5150newv4}  # the legged specialist's eleventh round: bench, chair and table shapes 4550-5149,
+DATA58M=${DATA58M:-data/legs5750newv4}  # ... shapes 5150-5749 ...
+DATA58=${DATA58:-data/legs4550to5749v4}  # ... merged
 DATA54N=${DATA54N:-data/legs3950newv4}  # the legged specialist's tenth round: bench, chair and table shapes 3950-4549 ...
 DATA54=${DATA54:-data/legs4550v4}  # ... merged with DATA53
 COMPACT40=${COMPACT40:-$OUT40/models_routed5}  # the model folder compact-v40 stores in int8 ...
@@ -4627,6 +4630,48 @@ for k in (1, 2):
               f"{st['predictor_forward']:.0f} / {st['predictor_backward']:.0f} | {render:.0f} | {r['step_cpu_ms']:.0f} |")
 PY
       ;;
+    bundle36-v58)  # the thirty-sixth bundle as shipped (git THIRTYSIXTH [5370e93]) into OUT58/models_bundle36, and its legged
+      # specialist beside the twenty-first's generator (git TWENTYFIRST [2a2eadb]) into OUT58/models_bundle_legs: what the
+      # v58 steps start from on a machine without the tenth round's run (runs/v54 stayed on the machine that trained it)
+      bundle_from_git "${THIRTYSIXTH:-5370e93}" "$OUT58/models_bundle36"
+      [ -f "$OUT36/models_twentyfirst/generator.onnx" ] || models_from_git "${TWENTYFIRST:-2a2eadb}" "$OUT36/models_twentyfirst"
+      rm -rf "$OUT58/models_bundle_legs"; mkdir -p "$OUT58/models_bundle_legs"
+      cp "$OUT36/models_twentyfirst/generator.onnx" "$OUT58/models_bundle_legs/"
+      cp "$OUT58/models_bundle36/mesh_predictor_legged.onnx" "$OUT58/models_bundle_legs/mesh_predictor.onnx" ;;
+    data-v58)  # 1,200 bench, chair and table shapes a category that no stage has seen (ids 4550-5749, train split, 4 grid
+      # views each; rendered in two folders of 600 a category, DATA58N and DATA58M, merged into DATA58), and the fifth
+      # generator's images of their drawings and of the flipped drawings; resumes
+      local first folder
+      for first in 4550 5150; do
+        folder=$DATA58N; [ "$first" = 5150 ] && folder=$DATA58M
+        sketchmesh data --source procedural --first-shape "$first" --shapes-per-category 600 --categories "${LEGS[@]}" \
+          --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$folder"
+      done
+      [ -f "$DATA58/manifest.json" ] || sketchmesh data merge "$DATA58" "$DATA58N" "$DATA58M"
+      sketchmesh data generated "$DATA58" --models "$OUT8/models_fifth" --name normals16 --workers 2
+      sketchmesh data generated "$DATA58" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
+    import-legs-v58)  # the bundled legged specialist (the tenth round's, int8-stored) back as a run
+      # (RUNS58/bundle_legs/predictor: its weights made float32, batch norms calibrated on DATA58's generated images)
+      [ -f "$OUT58/models_bundle_legs/mesh_predictor.onnx" ] || step bundle36-v58
+      [ -f "$DATA58/.cache/generated/normals16_mirror/info.json" ] || step data-v58
+      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || sketchmesh import-models "$OUT58/models_bundle_legs" \
+        --out "$RUNS58/bundle_legs" --only predictor --data "$DATA58" --threads 2 ;;
+    predictor-v58-legs11)  # the legged specialist's eleventh round with the faster step (speed-v58): the bundled
+      # specialist (import-legs-v58) trained on along a new cosine by the rounds' recipe and rate (2e-4) on DATA58 alone
+      # (the earlier rounds' shapes are not on this machine; twice a round's fresh shapes instead) into RUNS58/legs11;
+      # V36_ITERS [2400], V36_MINUTES [40] at most; resumes
+      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || step import-legs-v58
+      V36_ITERS=${V36_ITERS:-2400} V36_MINUTES=${V36_MINUTES:-40} legs_round "$RUNS58/bundle_legs/predictor" "$DATA58" \
+        "$RUNS58/legs11" ;;
+    check-legs-v58)  # predictor-v58-legs11's run exported as the specialists are (OUT58/models_legs11) and scored beside
+      # the twenty-first and the bundled legged specialist (as shipped, int8-stored) on the choice set DATA36C (rendered
+      # first where missing), into OUT58/check_legs; then its paired gains
+      [ -f "$RUNS58/legs11/config.json" ] || step predictor-v58-legs11
+      [ -f "$OUT58/models_bundle_legs/mesh_predictor.onnx" ] || step bundle36-v58
+      choice_data "$DATA36C" "${LEGS[@]}"
+      legs_check "$OUT58" "$RUNS58/legs11" legs11 "$OUT36/models_twentyfirst" "$OUT58/models_bundle_legs" ;;
+    legs11-v58)  # the legged specialist's eleventh round from the bundle (about 85 min on 2 cores from a bare machine)
+      for s2 in bundle36-v58 data-v58 import-legs-v58 predictor-v58-legs11 check-legs-v58; do step "$s2"; done ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
