@@ -927,6 +927,11 @@ export_pair() {  # training run $1 exported as float32 and int8 into $2/models_f
   done
 }
 
+import_run() {  # the model folder $1's predictor back as a run in $2 (its weights made float32, batch norms calibrated on
+  # the generated images of the dataset $3), unless $2 holds one already
+  [ -f "$2/predictor/config.json" ] || sketchmesh import-models "$1" --out "$2" --only predictor --data "$3" --threads 2
+}
+
 models_from_git() {  # the bundled pair of commit $1 (assets/models) into folder $2
   mkdir -p "$2"
   for f in generator.onnx mesh_predictor.onnx; do git show "$1:assets/models/$f" > "$2/$f"; done
@@ -3315,8 +3320,7 @@ print('split md5', hashlib.md5(json.dumps([(s['shape_id'], s['split']) for s in 
       # (RUNS47/bundle_third/predictor: its weights made float32, batch norms calibrated on DATA46's generated images)
       [ -f "$OUT47/models_bundle_third/mesh_predictor.onnx" ] || step bundle24-v47
       [ -f "$DATA46/.cache/generated/normals16_mirror/info.json" ] || step data-v46
-      [ -f "$RUNS47/bundle_third/predictor/config.json" ] || sketchmesh import-models "$OUT47/models_bundle_third" \
-        --out "$RUNS47/bundle_third" --only predictor --data "$DATA46" --threads 2 ;;
+      import_run "$OUT47/models_bundle_third" "$RUNS47/bundle_third" "$DATA46" ;;
     predictor-v47-third3)  # the third round as predictor-v46-third3 planned it, on a machine without predictor-v45-third2's
       # run: the bundled third specialist (import-third-v47) trained on along a new cosine by the same recipe and rate on
       # DATA46 into RUNS47/third3; V36_ITERS [3000], V36_MINUTES [65] at most; resumes
@@ -3546,8 +3550,7 @@ EOF
       # float32, batch norms calibrated on DATA51's generated images)
       [ -f "$OUT51/models_bundle_legged/mesh_predictor.onnx" ] || step legged-v51
       [ -f "$DATA51/.cache/generated/normals16_mirror/info.json" ] || step data-v51
-      [ -f "$RUNS51/bundle_legged/predictor/config.json" ] || sketchmesh import-models "$OUT51/models_bundle_legged" \
-        --out "$RUNS51/bundle_legged" --only predictor --data "$DATA51" --threads 2 ;;
+      import_run "$OUT51/models_bundle_legged" "$RUNS51/bundle_legged" "$DATA51" ;;
     predictor-v51-legs7)  # the legged specialist's seventh round: the bundled one (import-legs-v51) trained on along a
       # new cosine by the same recipe and rate on DATA51, into RUNS51/legs7; V36_ITERS [3000], V36_MINUTES [65] at most;
       # resumes
@@ -4654,8 +4657,7 @@ PY
       # (RUNS58/bundle_legs/predictor: its weights made float32, batch norms calibrated on DATA58's generated images)
       [ -f "$OUT58/models_bundle_legs/mesh_predictor.onnx" ] || step bundle36-v58
       [ -f "$DATA58/.cache/generated/normals16_mirror/info.json" ] || step data-v58
-      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || sketchmesh import-models "$OUT58/models_bundle_legs" \
-        --out "$RUNS58/bundle_legs" --only predictor --data "$DATA58" --threads 2 ;;
+      import_run "$OUT58/models_bundle_legs" "$RUNS58/bundle_legs" "$DATA58" ;;
     predictor-v58-legs11)  # the legged specialist's eleventh round with the faster step (speed-v58): the bundled
       # specialist (import-legs-v58) trained on along a new cosine by the rounds' recipe and rate (2e-4) on DATA58 alone
       # (the earlier rounds' shapes are not on this machine; twice a round's fresh shapes instead) into RUNS58/legs11;
