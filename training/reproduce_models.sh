@@ -238,6 +238,12 @@
 #   the thirty-sixth bundle's meshes of the same shape's drawings (eval-mirror06-clean-v56): its table and sheet.
 #   overfit-chairs-v57: the guide's overfit check on fit-chair-v57's chairs alone: can the predictor learn their legs?
 #   overfit-chair1-v57: the same on one of them alone; overfit-chair2-v57 on two, with as many samples of each.
+# The faster step and the legged specialist's eleventh round (OUT58 [out/v58], RUNS58 [runs/v58]): speed-v58 times the
+#   specialists' training step (bench train) at commit BEFORE58 [5370e93] and now, alternating. bundle36-v58 takes the
+#   thirty-sixth bundle from git; data-v58 renders 1,200 fresh bench, chair and table shapes a category (DATA58);
+#   import-legs-v58 makes the bundled legged specialist a run again; predictor-v58-legs11 trains it on; check-legs-v58
+#   scores it on the choice set (legs11-v58 runs these in order); legs11-route-v58 routes it in the bundle and scores
+#   every test sketch beside the bundle's own evals (eval-mirror06-*-v56); versus-v58, ship-compact18-v58.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4674,6 +4680,11 @@ PY
       legs_check "$OUT58" "$RUNS58/legs11" legs11 "$OUT36/models_twentyfirst" "$OUT58/models_bundle_legs" ;;
     legs11-v58)  # the legged specialist's eleventh round from the bundle (about 85 min on 2 cores from a bare machine)
       for s2 in bundle36-v58 data-v58 import-legs-v58 predictor-v58-legs11 check-legs-v58; do step "$s2"; done ;;
+    compact18-v58|eval-compact18-clean-v58|eval-compact18-side-v58|eval-compact18-strong-v58|gallery-compact18-v58|\
+        legs11-route-v58|versus-v58|ship-compact18-v58)  # the eleventh round routed, measured and shipped:
+      # specialist_route (the thirty-sixth bundle OUT56/models_mirror06 with the round's specialist stored as it stores
+      # them; every test sketch paired with that bundle's own evals OUT56/mirror06_<case>)
+      specialist_route "$1" legs 58 legs11 compact18 56 mirror06 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
