@@ -771,6 +771,8 @@ class CompactMeshPredictor(_TemplateOffsets):
         """
         uv = framed_ndc(vertices.detach())
         grid = torch.stack([uv[..., 0], -uv[..., 1]], dim=-1)  # image rows run down: v up is -y
+        if not _traced():
+            return self._aligned_offsets_channels(vertices, maps, grid)
         first, last = self.aligned_mlp[0], self.aligned_mlp[2]
         hidden = F.linear(vertices.detach(), first.weight[:, -3:], first.bias)  # (N, V, W): the vertex's block
         start = 0
@@ -782,6 +784,37 @@ class CompactMeshPredictor(_TemplateOffsets):
             sampled = sample_points(m, grid.to(m.dtype))  # (N, V, C or W)
             hidden = hidden + (sampled if block is None else F.linear(sampled, block))
         return self.local_scale * last(F.relu(hidden))
+
+    def _aligned_offsets_channels(self, vertices: torch.Tensor, maps: list[torch.Tensor],
+                                  grid: torch.Tensor) -> torch.Tensor:
+        """:meth:`_aligned_offsets`' function as torch computes it fastest: the per-vertex features channel-major
+        (N, C, V), the layout ``F.grid_sample`` writes, so nothing is transposed before the perceptron; the vertex's
+        block and the maps sampled first as one 1-D convolution over their concatenation (a matrix product with 3
+        inputs is the slowest kind); the projected maps' samples added in place. For the larger predictor at batch
+        64 (a training step's, with its mirrored half) the branch's forward and backward take about a fifth less
+        than the row-major form with ``F.grid_sample`` (173-254 against 208-327 ms, two runs on 2 threads). The
+        ONNX trace keeps the row-major form, which ONNX Runtime runs fastest.
+        """
+        first, last = self.aligned_mlp[0], self.aligned_mlp[2]
+        where = grid.detach()[:, :, None, :]  # (N, V, 1, 2)
+        parts, blocks, projected = [vertices.detach().transpose(1, 2)], [first.weight[:, -3:]], []
+        start = 0
+        for m in maps[:ALIGNED_STAGES]:
+            block = first.weight[:, start:start + m.shape[1]]  # (W, C)
+            start += m.shape[1]
+            small = m.shape[-2] * m.shape[-1] < vertices.shape[1]
+            if small:  # fewer pixels than vertices: project, then sample
+                m = F.conv2d(m, block[:, :, None, None])
+            sampled = F.grid_sample(m, where.to(m.dtype), mode="bilinear", padding_mode="border",
+                                    align_corners=False).squeeze(-1)  # (N, C or W, V)
+            (projected if small else parts).append(sampled)
+            if not small:
+                blocks.append(block)
+        hidden = F.conv1d(torch.cat(parts, dim=1), torch.cat(blocks, dim=1)[:, :, None], first.bias)  # (N, W, V)
+        for sampled in projected:
+            hidden.add_(sampled)  # the convolution's backward needs its input, not its output
+        out = F.conv1d(F.relu(hidden), last.weight[:, :, None], last.bias)  # (N, 3, V)
+        return self.local_scale * out.transpose(1, 2)
 
     def forward(self, normals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Args: normals (N, 3, 64, 64) in [0, 1]. Returns local (N, V, 3), global (N, 3) (view frame)."""
