@@ -25,8 +25,8 @@ from training.model.networks import (  # noqa: E402
     laplacian_basis,
     local_l1_loss,
     sample_bilinear,
+    sample_channels,
     sample_edge_pixels,
-    sample_points,
     smoothing_operator,
     sobel_magnitude,
     view_frame_cameras,
@@ -674,32 +674,42 @@ def test_sample_bilinear_is_grid_sample_with_border_padding(size):
 
 def _trace(fn, args):
     """torch.jit.trace (deprecated in favour of torch.export, but what sets torch.jit.is_tracing, as the ONNX
-    exporter the project uses does) without its deprecation warning."""
+    exporter the project uses does) without its deprecation warning and its warnings about shapes read as Python
+    numbers (the export traces the same code at fixed shapes)."""
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
         return torch.jit.trace(fn, args)
 
 
-def test_sample_points_is_sample_bilinear_in_torch_and_its_gathers_when_traced():
-    """What the predictor samples with: in torch F.grid_sample, equal to sample_bilinear's gathers in value and in
-    the gradient of the maps (none reaches the grid); traced, the graph holds the gathers and no grid sampler."""
+def test_sample_channels_is_sample_bilinear_and_the_trace_keeps_the_gathers():
+    """What the predictor samples with in torch: F.grid_sample, channel-major, equal to sample_bilinear's gathers in
+    value and in the gradient of the maps (none reaches the grid); traced for ONNX, the aligned branch holds the
+    gathers and no grid sampler, and gives the same offsets."""
     torch.manual_seed(4)
     maps = torch.randn(3, 6, 9, 7, dtype=torch.float64, requires_grad=True)
     grid = (torch.rand(3, 50, 2, dtype=torch.float64) * 2.6 - 1.3).requires_grad_()
-    got, want = sample_points(maps, grid), sample_bilinear(maps, grid)
+    got, want = sample_channels(maps, grid), sample_bilinear(maps, grid).transpose(1, 2)
     torch.testing.assert_close(got, want, rtol=1e-12, atol=1e-12)
     weights = torch.randn_like(want)
     g_got = torch.autograd.grad((got * weights).sum(), maps)[0]
     g_want = torch.autograd.grad((want * weights).sum(), maps)[0]
     torch.testing.assert_close(g_got, g_want, rtol=1e-12, atol=1e-12)
-    assert not got.requires_grad or got.grad_fn is not None
-    assert torch.autograd.grad(sample_points(maps, grid).sum(), grid, allow_unused=True)[0] is None
-    traced = _trace(sample_points, (maps.detach(), grid.detach()))
+    assert got.requires_grad  # the gradient reaches the maps ...
+    assert torch.autograd.grad(sample_channels(maps, grid).sum(), grid, allow_unused=True)[0] is None  # ... not the grid
+    net = CompactMeshPredictor(2, base_channels=8, hidden=32, latent=16, aligned=12).double().eval()
+    net.requires_grad_(False)  # a traced closure holds the weights as constants
+    net.aligned_mlp[2].weight.normal_()
+    verts = torch.randn(2, net.basis.shape[0], 3, dtype=torch.float64) * 0.4
+    branch_maps = [torch.randn(2, 8, 32, 32, dtype=torch.float64), torch.randn(2, 16, 8, 8, dtype=torch.float64),
+                   torch.randn(2, 32, 4, 4, dtype=torch.float64)]
+    traced = _trace(lambda v, a, b, c: net._aligned_offsets(v, [a, b, c]), (verts, *branch_maps))
     kinds = {n.kind() for n in traced.graph.nodes()}
     assert "aten::grid_sampler" not in kinds and "aten::index" in kinds
-    torch.testing.assert_close(traced(maps.detach(), grid.detach()), want.detach(), rtol=1e-12, atol=1e-12)
+    torch.testing.assert_close(traced(verts, *branch_maps), net._aligned_offsets(verts, branch_maps),
+                               rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.parametrize("n", [1, 4])

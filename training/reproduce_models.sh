@@ -4613,15 +4613,12 @@ PY
       local set=(--set input_normals=normals16 --set mirror=0.5 --set mirror_consistency=50
                  --set mirror_inputs=normals16_mirror --set predictor_aligned=128 --set predictor_channels=64
                  --set predictor_hidden=1024 --set normal_edges=false)
+      local code
       for k in 1 2; do
         for tag in before after; do
-          if [ "$tag" = before ]; then
-            PYTHONPATH="$before" python3 -P -m sketchmesh bench train --data "$DATA36L" --batch 32 --warmup 3 --steps 20 \
-              "${set[@]}" --json "$OUT58/bench_train_${tag}_$k.json" > /dev/null
-          else
-            sketchmesh bench train --data "$DATA36L" --batch 32 --warmup 3 --steps 20 "${set[@]}" \
-              --json "$OUT58/bench_train_${tag}_$k.json" > /dev/null
-          fi
+          code=(sketchmesh); [ "$tag" = before ] && code=(env PYTHONPATH="$before" python3 -P -m sketchmesh)
+          "${code[@]}" bench train --data "$DATA36L" --batch 32 --warmup 3 --steps 20 "${set[@]}" \
+            --json "$OUT58/bench_train_${tag}_$k.json" > /dev/null
         done
       done
       python3 - "$OUT58" <<'PY'
@@ -4678,7 +4675,7 @@ PY
       [ -f "$OUT58/models_bundle_legs/mesh_predictor.onnx" ] || step bundle36-v58
       choice_data "$DATA36C" "${LEGS[@]}"
       legs_check "$OUT58" "$RUNS58/legs11" legs11 "$OUT36/models_twentyfirst" "$OUT58/models_bundle_legs" ;;
-    legs11-v58)  # the legged specialist's eleventh round from the bundle (about 85 min on 2 cores from a bare machine)
+    legs11-v58)  # the legged specialist's eleventh round from the bundle (about 55 min on 2 cores from a bare machine)
       for s2 in bundle36-v58 data-v58 import-legs-v58 predictor-v58-legs11 check-legs-v58; do step "$s2"; done ;;
     compact18-v58|eval-compact18-clean-v58|eval-compact18-side-v58|eval-compact18-strong-v58|gallery-compact18-v58|\
         legs11-route-v58|versus-v58|ship-compact18-v58)  # the eleventh round routed, measured and shipped:

@@ -435,20 +435,17 @@ def _traced() -> bool:
     return torch.jit.is_tracing() or torch.onnx.is_in_onnx_export()
 
 
-def sample_points(maps: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
-    """:func:`sample_bilinear`'s function, computed the way that is fastest where it runs.
+def sample_channels(maps: torch.Tensor, grid: torch.Tensor) -> torch.Tensor:
+    """(N, C, V): :func:`sample_bilinear`'s samples, channel-major, as torch computes them fastest.
 
-    Traced for ONNX it is :func:`sample_bilinear`'s four row gathers (ONNX Runtime's GridSample is slow); in torch
-    it is ``F.grid_sample`` itself, whose fused CPU kernels take 2-3 times less than the gathers' indexing and
-    ``index_put`` backward in a training step (``sketchmesh bench train``, the larger predictor at batch 32: the
-    aligned branch's three samplings 280 -> 120 ms a step). The same values and gradients (tested), and, as
-    there, the gradient reaches ``maps``, not ``grid``.
+    ``F.grid_sample`` itself, whose fused CPU kernels take 2-3 times less than :func:`sample_bilinear`'s gathers and
+    their ``index_put`` backward in a training step (the larger predictor's aligned branch at batch 64: its three
+    samplings about 280 -> 120 ms a step), in the layout it writes. The same values and gradients (tested); as
+    there, the gradient reaches ``maps``, not ``grid``. The ONNX trace uses the gathers (ONNX Runtime's GridSample
+    is slow).
     """
-    if _traced():
-        return sample_bilinear(maps, grid)
-    out = F.grid_sample(maps, grid.detach()[:, :, None, :], mode="bilinear", padding_mode="border",
-                        align_corners=False)  # (N, C, V, 1)
-    return out.squeeze(-1).transpose(1, 2)  # squeeze, not [..., 0]: its backward is a view, not a zero fill
+    return F.grid_sample(maps, grid.detach()[:, :, None, :], mode="bilinear", padding_mode="border",
+                         align_corners=False).squeeze(-1)  # squeeze, not [..., 0]: its backward is a view, not a fill
 
 
 def basis_times(basis: torch.Tensor, coeff: torch.Tensor) -> torch.Tensor:
@@ -781,7 +778,7 @@ class CompactMeshPredictor(_TemplateOffsets):
             start += m.shape[1]
             if m.shape[-2] * m.shape[-1] < vertices.shape[1]:  # fewer pixels than vertices: project, then sample
                 m, block = F.conv2d(m, block[:, :, None, None]), None
-            sampled = sample_points(m, grid.to(m.dtype))  # (N, V, C or W)
+            sampled = sample_bilinear(m, grid.to(m.dtype))  # (N, V, C or W)
             hidden = hidden + (sampled if block is None else F.linear(sampled, block))
         return self.local_scale * last(F.relu(hidden))
 
@@ -796,7 +793,6 @@ class CompactMeshPredictor(_TemplateOffsets):
         ONNX trace keeps the row-major form, which ONNX Runtime runs fastest.
         """
         first, last = self.aligned_mlp[0], self.aligned_mlp[2]
-        where = grid.detach()[:, :, None, :]  # (N, V, 1, 2)
         parts, blocks, projected = [vertices.detach().transpose(1, 2)], [first.weight[:, -3:]], []
         start = 0
         for m in maps[:ALIGNED_STAGES]:
@@ -805,8 +801,7 @@ class CompactMeshPredictor(_TemplateOffsets):
             small = m.shape[-2] * m.shape[-1] < vertices.shape[1]
             if small:  # fewer pixels than vertices: project, then sample
                 m = F.conv2d(m, block[:, :, None, None])
-            sampled = F.grid_sample(m, where.to(m.dtype), mode="bilinear", padding_mode="border",
-                                    align_corners=False).squeeze(-1)  # (N, C or W, V)
+            sampled = sample_channels(m, grid.to(m.dtype))  # (N, C or W, V)
             (projected if small else parts).append(sampled)
             if not small:
                 blocks.append(block)
