@@ -152,6 +152,19 @@
 #   carries about +-0.016 and a paired difference +-0.001 to 0.003 (sketchmesh eval prints both since 2026-11-28), and
 #   last session's CPU passes looked 0.005-0.015 behind there but were within 0.003 on DATA72's 520 (reproduce_models.sh
 #   check-*-v27, whose runs a later step can extend with the new one).
+# The next lent GPU (prepared 2026-12-01; the CPU rounds of the legged specialist are spent: the model card's "A third
+#   more samples a CPU minute"): the bundled legged specialist (PREDICTOR=mesh_predictor_legged.onnx) at batch 128 on
+#   bench, chair and table shapes no stage has seen (ids 6000-7499, train split, 4 grid views each), nothing carried
+#   but .whl (reproduce_models.sh whl-gpu), in one call of the device tool (carry [".whl"], timeout_s 600):
+#     SHAPES=1500 FIRST_SHAPE=6000 CATEGORIES="bench chair table" SPLITS=train VIEWS_PER_SHAPE=4 INPUTS=generated \
+#       PREDICTOR=mesh_predictor_legged.onnx GEN_MODELS=assets/models DATA=data/g256legs END=560 \
+#       ARCH="--predictor-channels 64 --predictor-hidden 1024 --predictor-aligned 128" EXTRA="--mirror-consistency 50" \
+#       SPECS="legs12 128 2e-4" bash training/gpu_predictor.sh assets/models
+#   then here GPU_FILES=<files_at> bash training/reproduce_models.sh fetch-gpu-v59 check-legs-v59 (its choice set beside
+#   the bundled specialist, as the CPU rounds were chosen), and when it is ahead gpulegs12-route-v59 (every test sketch,
+#   routed as the bundle runs it) and ship-compact19-v59. Read its legs ("how the meshes stand") against ceiling-v57.
+#   Dry run on this CPU (4.5 min, 894 iterations at batch 8; a 30 MB slim checkpoint in two parts): the same with
+#   DEVICE=cpu SHAPES=3 CAL=8 END=400 WORKERS=0 SPECS="legs12 8 2e-4" DATA=/tmp/gdry RUNS=/tmp/gdry_runs OUT=/tmp/gdry_out
 set -uo pipefail
 
 INIT=${1:?usage: gpu_predictor.sh INIT_RUN|MODELS_DIR|fresh}
@@ -180,6 +193,20 @@ ELEVATIONS=${ELEVATIONS:-"0 15 30 45"}
 # elevation when K is a multiple of them): more shapes for the same rendering, still at the views the app is measured at
 VIEWS_PER_SHAPE=${VIEWS_PER_SHAPE:-}
 SUBSET=(); [ -n "$VIEWS_PER_SHAPE" ] && SUBSET=(--views-per-shape "$VIEWS_PER_SHAPE")
+# CATEGORIES [all 13], FIRST_SHAPE [0] and SPLITS [all]: which procedural shapes the data holds (`data --categories
+# --first-shape --splits`); a specialist trains on its categories' shapes that no stage has seen, all in the train split
+# (e.g. CATEGORIES="bench chair table" FIRST_SHAPE=6000 SPLITS=train: the CPU rounds used ids up to 5749)
+CATEGORIES=${CATEGORIES:-}
+FIRST_SHAPE=${FIRST_SHAPE:-0}
+SPLITS=${SPLITS:-}
+PICK=(--first-shape "$FIRST_SHAPE")
+# shellcheck disable=SC2206
+[ -n "$CATEGORIES" ] && PICK+=(--categories $CATEGORIES)
+# shellcheck disable=SC2206
+[ -n "$SPLITS" ] && PICK+=(--splits $SPLITS)
+# PREDICTOR [mesh_predictor.onnx]: which predictor file of an INIT models folder is imported and trained on (e.g.
+# mesh_predictor_legged.onnx, the bundled specialist for bench, chair and table)
+PREDICTOR=${PREDICTOR:-mesh_predictor.onnx}
 CAL=${CAL:-60}
 END=${END:-555}
 SPECS=${SPECS:-"g10_b512 512 8e-4"}
@@ -222,7 +249,7 @@ if [ -f "$DATA/manifest.json" ] && [ -f "$DATA/.cache/mesh_arrays.bin" ]; then
   echo "$DATA: already built"
 else
   # shellcheck disable=SC2086
-  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views "$VIEWS" --elevations $ELEVATIONS "${SUBSET[@]}" "${SIZE[@]}" \
+  "${SM[@]}" data --source procedural --shapes-per-category "$SHAPES" --views "$VIEWS" --elevations $ELEVATIONS "${SUBSET[@]}" "${PICK[@]}" "${SIZE[@]}" \
     --workers "$(nproc)" --no-progress --out "$DATA" || exit 1
   python3 -c "
 import hashlib, json
@@ -241,11 +268,12 @@ if [ "$INPUTS" = generated ]; then
       || exit 1
   done
 fi
-if [ -f "$INIT/mesh_predictor.onnx" ]; then  # INIT an exported models folder (e.g. assets/models): import it here
+if [ -f "$INIT/$PREDICTOR" ]; then  # INIT an exported models folder (e.g. assets/models): import its PREDICTOR here
   [ "$INPUTS" = generated ] || { echo "importing $INIT needs INPUTS=generated (its batch norms are calibrated on the generator's images)" >&2; exit 1; }
-  echo "== import $INIT $(elapsed) s"
-  rm -rf /tmp/imported
-  "${SM[@]}" import-models "$INIT" --out /tmp/imported --only predictor --data "$DATA" --threads "$(nproc)" || exit 1
+  echo "== import $INIT/$PREDICTOR $(elapsed) s"
+  rm -rf /tmp/imported /tmp/init_models; mkdir -p /tmp/init_models
+  cp "$INIT/$PREDICTOR" /tmp/init_models/mesh_predictor.onnx || exit 1  # import-models reads a folder's mesh_predictor.onnx
+  "${SM[@]}" import-models /tmp/init_models --out /tmp/imported --only predictor --data "$DATA" --threads "$(nproc)" || exit 1
   INIT_ARGS=(--init-mesh /tmp/imported/predictor)
 fi
 if [ "$CAL" -gt 0 ]; then

@@ -244,6 +244,10 @@
 #   import-legs-v58 makes the bundled legged specialist a run again; predictor-v58-legs11 trains it on; check-legs-v58
 #   scores it on the choice set (legs11-v58 runs these in order); legs11-route-v58 routes it in the bundle and scores
 #   every test sketch beside the bundle's own evals (eval-mirror06-*-v56); versus-v58, ship-compact18-v58.
+# The legged specialist on a lent GPU at batch 128 (OUT59 [out/v59], RUNS59 [runs/v59]; the call is in
+#   training/gpu_predictor.sh's header): whl-gpu fetches the wheels it carries; fetch-gpu-v59 (GPU_FILES) makes what came
+#   back a run (RUNS59/legs12); check-legs-v59 scores it on the choice set beside the bundled specialist;
+#   gpulegs12-route-v59 routes it in the bundle and scores every test sketch; versus-v59, ship-compact19-v59.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -441,6 +445,8 @@ BUNDLE56=${BUNDLE56:-out/v56/models_bundle35}  # the thirty-fifth bundle (bundle
 OUT57=${OUT57:-out/v57}
 OUT58=${OUT58:-out/v58}
 RUNS58=${RUNS58:-runs/v58}
+OUT59=${OUT59:-out/v59}
+RUNS59=${RUNS59:-runs/v59}
 DATA58N=${DATA58N:-data/legs5150newv4}  # the legged specialist's eleventh round: bench, chair and table shapes 4550-5149,
 DATA58M=${DATA58M:-data/legs5750newv4}  # ... shapes 5150-5749 ...
 DATA58=${DATA58:-data/legs4550to5749v4}  # ... merged
@@ -4682,6 +4688,25 @@ PY
       # specialist_route (the thirty-sixth bundle OUT56/models_mirror06 with the round's specialist stored as it stores
       # them; every test sketch paired with that bundle's own evals OUT56/mirror06_<case>)
       specialist_route "$1" legs 58 legs11 compact18 56 mirror06 ;;
+    whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
+      # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
+      python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+        --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 -d .whl \
+        trimesh==5.2.0 manifold3d==3.5.4
+      ls -l .whl ;;
+    fetch-gpu-v59)  # what gpu_predictor.sh brought back from the legged specialist's GPU call (GPU_FILES) -> RUNS59/NAME
+      RUNS2=$RUNS59 step fetch-gpu ;;
+    check-legs-v59)  # that run (RUNS59/GPU59_RUN [legs12]) exported as the specialists are (OUT59/models_gpulegs12) and
+      # scored beside the twenty-first and the bundled legged specialist on the choice set DATA36C (rendered first where
+      # missing), into OUT59/check_legs; then its paired gains (check-legs-v58's check)
+      [ -f "$RUNS59/${GPU59_RUN:-legs12}/config.json" ] || { echo "check-legs-v59: no run $RUNS59/${GPU59_RUN:-legs12}: fetch-gpu-v59 first" >&2; exit 1; }
+      [ -f "$OUT58/models_bundle_legs/mesh_predictor.onnx" ] || step bundle36-v58
+      choice_data "$DATA36C" "${LEGS[@]}"
+      legs_check "$OUT59" "$RUNS59/${GPU59_RUN:-legs12}" gpulegs12 "$OUT36/models_twentyfirst" "$OUT58/models_bundle_legs" ;;
+    compact19-v59|eval-compact19-clean-v59|eval-compact19-side-v59|eval-compact19-strong-v59|gallery-compact19-v59|\
+        gpulegs12-route-v59|versus-v59|ship-compact19-v59)  # the GPU round routed, measured and shipped as the CPU
+      # rounds are (specialist_route against the thirty-sixth bundle's own evals, OUT56/mirror06_<case>)
+      specialist_route "$1" legs 59 gpulegs12 compact19 56 mirror06 ;;
     all-v1)
       for s in data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff gallery; do step "$s"; done ;;
     *)
