@@ -4688,6 +4688,11 @@ PY
       # specialist_route (the thirty-sixth bundle OUT56/models_mirror06 with the round's specialist stored as it stores
       # them; every test sketch paired with that bundle's own evals OUT56/mirror06_<case>)
       specialist_route "$1" legs 58 legs11 compact18 56 mirror06 ;;
+    latency-bundle-v59)  # the bundle as shipped (assets/models, the thirty-sixth) timed in the app's path on this session's
+      # machine (bundle_latency; run it alone) into OUT59/latency_bundle (run twice here, the first run's files copied
+      # to OUT59/latency_bundle_first)
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      bundle_latency assets/models "$OUT59/latency_bundle" ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
