@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-CATEGORIES = ("blob", "box", "can")
+CATEGORIES = ("blob", "box", "can", "table")
 SKETCH_EDGE_THRESHOLD = 0.6
 """Sobel magnitude (of the [0, 1] normal image) above which a pixel is ink."""
 
@@ -44,6 +44,11 @@ def make_mesh(category: str, index: int):
         m = trimesh.creation.box(extents=(1.0, 0.6 * s, 0.4)).subdivide().subdivide()
     elif category == "can":
         m = trimesh.creation.cylinder(radius=0.3 * s, height=1.0, sections=24)
+    elif category == "table":  # a top on four legs at its corners: a shape that stands on separate supports
+        top = trimesh.creation.box(extents=(1.0, 0.08, 0.6 * s)).apply_translation((0.0, 0.3, 0.0))
+        legs = [trimesh.creation.box(extents=(0.08, 0.6, 0.08)).apply_translation((x, 0.0, z))
+                for x in (-0.44, 0.44) for z in (-0.26 * s, 0.26 * s)]
+        m = trimesh.util.concatenate([top, *legs])
     else:
         raise ValueError(f"unknown synthetic category {category!r}; expected one of {CATEGORIES}")
     return Mesh(normalize_vertices(m.vertices), m.faces)

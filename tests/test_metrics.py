@@ -10,6 +10,7 @@ from engine.icosphere import icosphere
 from engine.mesh import Mesh
 from training.evaluation.metrics import (
     chamfer_l1,
+    image_support_count,
     normal_consistency,
     sample_surface,
     silhouette_iou,
@@ -354,3 +355,52 @@ def test_support_count_of_voxelised_meshes():
 def test_support_count_refuses_bad_input(bad, band):
     with pytest.raises(ValueError):
         support_count(bad, band)
+
+
+def _image(rows) -> np.ndarray:
+    """A silhouette from strings, '#' covered, top row first."""
+    return np.array([[c == "#" for c in r] for r in rows], bool)
+
+
+def test_image_support_count_of_hand_drawn_silhouettes():
+    side = _image(["##########",
+                   "##########",
+                   ".#......#.",
+                   ".#......#.",
+                   ".#......#."])
+    assert image_support_count(side) == 2  # a table from the side: its front legs hide the back ones
+    four = _image(["############",
+                   "#..#....#..#",
+                   "#..#....#..#",
+                   "#..#....#..#"])
+    assert image_support_count(four) == 4  # legs at the image's border columns count too
+    # a skirt with stubs one row high: the lowest quarter (3 of 12 rows) has 4, 1, 1 pieces -> 1; the stubs' row alone 4
+    skirt = np.zeros((12, 12), bool)
+    skirt[0:11, 1:11] = True
+    skirt[11, [1, 4, 7, 10]] = True
+    assert image_support_count(skirt) == 1 and image_support_count(skirt, band=1 / 12) == 4
+    assert image_support_count(np.zeros((6, 6), bool)) == 0 and image_support_count(np.ones((6, 6), bool)) == 1
+    # the band is of the silhouette's own rows, wherever it sits in the image
+    shifted = np.zeros((30, 14), bool)
+    shifted[10:15, 2:12] = side
+    assert image_support_count(shifted) == 2
+
+
+def test_image_support_count_is_support_count_of_the_silhouette_extruded():
+    """Independent expectation: a silhouette extruded along z is a solid whose layers are its rows (image rows down, +Y
+    up), counted by support_count (scipy's labelling of 8-neighbours within a layer) against the row runs here."""
+    rng = np.random.default_rng(0)
+    for trial in range(200):
+        h, w = rng.integers(1, 14, size=2)
+        mask = rng.random((h, w)) < rng.uniform(0.1, 0.9)
+        vox = np.repeat(mask[::-1].T[:, :, None], 2, axis=2)  # [x, y, z]: column x, row from the bottom y
+        band = float(rng.choice([0.25, 0.5, 1.0, 0.1]))
+        assert image_support_count(mask, band) == support_count(vox, band), (trial, mask.astype(int), band)
+
+
+@pytest.mark.parametrize("bad, band", [(np.zeros((4, 4, 4), bool), 0.25), (np.zeros((4, 4), np.uint8), 0.25),
+                                       (np.zeros((4, 4), bool), 0.0), (np.zeros((4, 4), bool), float("nan")),
+                                       (np.zeros((4, 4), bool), 1.5), (np.zeros((4, 4), bool), True)])
+def test_image_support_count_refuses_bad_input(bad, band):
+    with pytest.raises(ValueError):
+        image_support_count(bad, band)

@@ -248,6 +248,7 @@
 #   training/gpu_predictor.sh's header): whl-gpu fetches the wheels it carries; fetch-gpu-v59 (GPU_FILES) makes what came
 #   back a run (RUNS59/legs12); check-legs-v59 scores it on the choice set beside the bundled specialist;
 #   gpulegs12-route-v59 routes it in the bundle and scores every test sketch; versus-v59, ship-compact19-v59.
+#   latency-bundle-v59 times the shipped bundle here; supports-v59 counts where the legs are lost (bench supports).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4693,6 +4694,13 @@ PY
       # to OUT59/latency_bundle_first)
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
       bundle_latency assets/models "$OUT59/latency_bundle" ;;
+    supports-v59)  # where the legs are lost (bench supports): every test view of a standing bench, chair and table, the
+      # supports seen in the true silhouette, the bundled generator's image, the bundled legged specialist's mesh of it
+      # and of the true normal image, and the meshes' supports in 3D, into OUT59/supports_legged; SUPPORTS59_MODELS
+      # [assets/models] and SUPPORTS59_OUT to measure another folder (e.g. a GPU round's, after compact19-v59)
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      sketchmesh bench supports --data "$DATA36A" --models "${SUPPORTS59_MODELS:-assets/models}" \
+        --predictor mesh_predictor_legged.onnx --threads 2 --quiet --out "${SUPPORTS59_OUT:-$OUT59/supports_legged}" ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \

@@ -1,4 +1,4 @@
-"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench overfit-compare``, ``bench train``, ``bench variants``, ``bench tradeoff``, ``bench refine`` and ``sketchmesh gallery``.
+"""Registers ``sketchmesh bench renderer``, ``bench fit``, ``bench overfit``, ``bench overfit-compare``, ``bench train``, ``bench variants``, ``bench tradeoff``, ``bench refine``, ``bench supports`` and ``sketchmesh gallery``.
 
 Cheap to import (argparse only): torch and the implementations are imported inside the
 command functions, through :func:`training._torch.require_torch`.
@@ -40,6 +40,7 @@ _cmd_bench_train = _lazy("training.bench.train", "main_bench_train")
 _cmd_bench_variants = _lazy("training.bench.variants", "main_variants")
 _cmd_bench_tradeoff = _lazy("training.evaluation.tradeoff", "main_tradeoff")
 _cmd_bench_refine = _lazy("training.evaluation.refine_bench", "main_refine_bench")
+_cmd_bench_supports = _lazy("training.evaluation.supports_bench", "main_supports_bench")
 _cmd_gallery = _lazy("training.evaluation.gallery", "main_gallery")
 _cmd_bench_variety = _lazy("training.evaluation.variety", "main_variety")
 
@@ -77,7 +78,7 @@ def _key_value(text: str) -> tuple[str, object]:
 
 
 def register(commands, bench) -> None:
-    """Add ``bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff`` and ``bench refine`` to ``bench``, and ``gallery`` to ``commands``."""
+    """Add ``bench renderer``, ``bench fit``, ``bench overfit``, ``bench train``, ``bench tradeoff``, ``bench refine`` and ``bench supports`` to ``bench``, and ``gallery`` to ``commands``."""
     p = one_line_errors(bench.add_parser(
         "renderer",
         help="speed, memory and accuracy of the differentiable rasterizer (and the dense baseline)",
@@ -287,6 +288,31 @@ def register(commands, bench) -> None:
     t.add_argument("--quiet", action="store_true")
     voxel_centres_flag(t)
     t.set_defaults(func=_cmd_bench_tradeoff)
+
+    u = one_line_errors(bench.add_parser(
+        "supports", help="where a drawing's legs are lost: supports seen in the true silhouette, the generator's image "
+        "and the predictor's mesh",
+        description="For every view of a shape standing on two or more separate supports: the supports seen in the "
+        "drawing's own view (pieces along the rows of the lowest quarter of a silhouette) in the true silhouette, the "
+        "generator's normal image of the clean drawing, the predictor's mesh of that image and (a diagnostic) its mesh "
+        "of the true normal image, and the two meshes' supports in 3D. Writes supports.md, supports.json and "
+        "supports.png to --out.",
+    ))
+    u.add_argument("--data", required=True, metavar="DIR", help="dataset folder")
+    u.add_argument("--split", choices=("test", "val", "train"), default="test", help="the views' split (default test)")
+    u.add_argument("--out", required=True, metavar="DIR", help="folder for supports.md, supports.json, supports.png")
+    u.add_argument("--models", metavar="DIR", default=argparse.SUPPRESS,  # keeps `sketchmesh --models DIR bench ...`
+                   help="model folder (default: the bundled models)")
+    u.add_argument("--predictor", metavar="FILE", default=None,
+                   help="the folder's predictor file to measure (default mesh_predictor.onnx; e.g. "
+                        "mesh_predictor_legged.onnx)")
+    u.add_argument("--categories", nargs="+", default=["bench", "chair", "table"], metavar="NAME",
+                   help="categories whose views are measured (default bench chair table)")
+    u.add_argument("--max-samples", type=int_in(0, 10**9), default=0,
+                   help="at most this many views of standing shapes, spread evenly (0: all)")
+    u.add_argument("--threads", type=int_in(1, 256), default=2, help="ONNX Runtime threads (default 2)")
+    u.add_argument("--quiet", action="store_true")
+    u.set_defaults(func=_cmd_bench_supports)
 
     if commands is None:
         return

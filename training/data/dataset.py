@@ -828,6 +828,11 @@ class ShapeViewDataset(_DatasetBase):
         """The shape's normalised mesh (world frame, as rendered)."""
         return Mesh(self.shape_array(category, shape_id, "vertices"), self.shape_array(category, shape_id, "faces"))
 
+    def view_key(self, i: int) -> tuple[str, str, int]:
+        """(category, shape_id, view) of item ``i``, without loading it."""
+        si, v = self._items[int(i)]
+        return self._shapes[si]["category"], self._shapes[si]["shape_id"], int(v)
+
     def other_views(self, i: int) -> np.ndarray:
         """(K,) the other view indices item i returns: distinct where possible, deterministic in (seed, i)."""
         si, v = self._items[i]

@@ -7,6 +7,7 @@
 * :func:`world_vertices` -- a prediction's view-frame vertices back in the world frame.
 * :func:`support_count`, :func:`support_profile` -- how many separate supports (legs, end panels,
   wheels) a voxelised solid stands on.
+* :func:`image_support_count` -- the same count in a silhouette: how many separate supports a view shows.
 
 Inputs are :class:`engine.mesh.Mesh` in the frame of :mod:`engine.camera`: a normalised shape
 lies in [-0.5, 0.5]^3. The metrics do not renormalise: both meshes must already be in the same
@@ -449,3 +450,34 @@ def support_count(voxels: np.ndarray, band: float = SUPPORT_BAND) -> int:
         return 0
     low = sorted(profile[: max(1, int(np.ceil(band * len(profile) - 1e-9)))], reverse=True)
     return low[(len(low) + 1) // 2 - 1]
+
+
+def image_support_count(mask: np.ndarray, band: float = SUPPORT_BAND) -> int:
+    """How many separate supports a silhouette shows: :func:`support_count` in one view's image.
+
+    The lowest ``band`` of the rows the silhouette covers (image rows go down, so the largest row indices) is searched;
+    each row's pieces are its runs of covered pixels (a row with none counts 0), and the count is the one that at least
+    half those rows reach (the upper median). A table seen from the side gives 2 (its front legs hide the back ones), a
+    chair from three quarters 3 or 4, a blob or a skirt 1, an empty image 0. What the drawing's own view shows, so it
+    separates where legs are lost: in the generator's normal image, or in the mesh the predictor makes of it
+    (``sketchmesh bench supports``).
+
+    Args:
+        mask: (H, W) bool silhouette (row 0 at the top).
+        band: the fraction of the silhouette's height searched from its lowest row, in (0, 1]; at least one row.
+    """
+    import numbers
+
+    if isinstance(band, bool) or not isinstance(band, numbers.Real) or not (np.isfinite(band) and 0.0 < band <= 1.0):
+        raise ValueError(f"band must be a number in (0, 1], got {band!r}")
+    m = np.asarray(mask)
+    if m.ndim != 2 or m.dtype != bool:
+        raise ValueError(f"image_support_count expects a 2-D bool silhouette (H, W), got {m.dtype} {m.shape}")
+    rows = np.flatnonzero(m.any(axis=1))
+    if rows.size == 0:
+        return 0
+    height = int(rows[-1] - rows[0]) + 1
+    low = m[int(rows[-1]) - max(1, int(np.ceil(band * height - 1e-9))) + 1: int(rows[-1]) + 1].astype(np.int8)
+    starts = np.diff(low, axis=1, prepend=0) == 1  # a run starts where a covered pixel follows an uncovered one
+    counts = sorted(np.count_nonzero(starts, axis=1).tolist(), reverse=True)
+    return int(counts[(len(counts) + 1) // 2 - 1])
