@@ -4700,7 +4700,14 @@ PY
       # [assets/models] and SUPPORTS59_OUT to measure another folder (e.g. a GPU round's, after compact19-v59)
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
       sketchmesh bench supports --data "$DATA36A" --models "${SUPPORTS59_MODELS:-assets/models}" \
-        --predictor mesh_predictor_legged.onnx --threads 2 --quiet --out "${SUPPORTS59_OUT:-$OUT59/supports_legged}" ;;
+        --predictor mesh_predictor_legged.onnx --threads 2 --quiet --out "${SUPPORTS59_OUT:-$OUT59/supports_legged}"
+      [ -n "${SUPPORTS59_OUT:-}" ] || cp "$OUT59/supports_legged/supports.png" docs/supports_legged.png ;;  # the card's plot
+    supports-general-v59)  # supports-v59 for the bundle's general predictor (mesh_predictor.onnx, the twenty-first's, which
+      # drawings the router does not recognise get): what the legged specialist's rounds changed, stage by stage, into
+      # OUT59/supports_general
+      [ -f "$DATA36A/manifest.json" ] || step data-test-v47
+      sketchmesh bench supports --data "$DATA36A" --models assets/models --predictor mesh_predictor.onnx --threads 2 \
+        --quiet --out "$OUT59/supports_general" ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
