@@ -4708,6 +4708,29 @@ PY
       [ -f "$DATA36A/manifest.json" ] || step data-test-v47
       sketchmesh bench supports --data "$DATA36A" --models assets/models --predictor mesh_predictor.onnx --threads 2 \
         --quiet --out "$OUT59/supports_general" ;;
+    predictor-v59-legs-n5e4)  # the legged specialist's eleventh round (predictor-v58-legs11) again with the normal term at a
+      # quarter of the paper's weight (lambda_n 0.0005): the silhouette, where the legs are, a larger share of each step;
+      # the same start, data, cosine and 2,400 iterations, into RUNS59/legs11_n5e4 (run it alone; resumes)
+      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || step import-legs-v58
+      RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA58 recipe20 "$RUNS58/bundle_legs/predictor" "$RUNS59/legs11_n5e4" \
+        "${V36_ITERS:-2400}" "${V36_MINUTES:-45}" 2 0.0005 ;;
+    check-legs-n5e4-v59)  # that run exported as the specialists are (OUT59/models_legs11_n5e4) and scored on the choice set
+      # beside the eleventh round as trained (OUT58/models_legs11, the control) and the bundled specialist, into
+      # OUT59/check_legs_n5e4; then its paired gains
+      [ -f "$RUNS59/legs11_n5e4/config.json" ] || step predictor-v59-legs-n5e4
+      [ -f "$OUT58/models_legs11/mesh_predictor.onnx" ] || step check-legs-v58
+      choice_data "$DATA36C" "${LEGS[@]}"
+      round_check "$OUT59" "$RUNS59/legs11_n5e4" legs11_n5e4 "$DATA36C" check_legs_n5e4 "$OUT58/models_bundle_legs" \
+        "$OUT58/models_legs11" ;;
+    supports-choice-v59)  # bench supports on the choice set's standing shapes (DATA36C, train split: 129 unseen bench, chair
+      # and table shapes x 4 views) for the bundled specialist, the eleventh round and the quarter-normal round, into
+      # OUT59/supports_choice_<name>
+      [ -f "$OUT59/models_legs11_n5e4/mesh_predictor.onnx" ] || step check-legs-n5e4-v59
+      local m
+      for m in "$OUT58/models_bundle_legs" "$OUT58/models_legs11" "$OUT59/models_legs11_n5e4"; do
+        sketchmesh bench supports --data "$DATA36C" --split train --models "$m" --threads 2 --quiet \
+          --out "$OUT59/supports_choice_${m##*/models_}"
+      done ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \

@@ -88,7 +88,7 @@ def run_supports_bench(
     from engine.camera import Camera
     from engine.mesh import Mesh
     from engine.models import load_predictor, load_runtime_generator, resolve_models_dir
-    from engine.pipeline import _run_batch, assemble_mesh, downsample_normals
+    from engine.pipeline import assemble_mesh, downsample_normals
     from engine.refine import generator_silhouette, pixel_coords, render_silhouette
     from training.data.dataset import ShapeViewDataset
     from training.evaluation.metrics import image_support_count, solid_voxels, support_count, world_vertices
@@ -115,7 +115,7 @@ def run_supports_bench(
         views = [views[int(k)] for k in np.unique(np.linspace(0, len(views) - 1, max_samples).round().astype(int))]
 
     def mesh_of(small: np.ndarray) -> Mesh:
-        local, glob = _run_batch(pred, pred.output_names, np.ascontiguousarray(small, np.float32))
+        local, glob = pred.session.run(pred.output_names, {pred.input_name: np.ascontiguousarray(small, np.float32)})
         return assemble_mesh(local, glob, pred.template_level, pred.template_radius)
 
     rows = []
@@ -123,7 +123,7 @@ def run_supports_bench(
         it = data[i]
         cat, sid = it["category"], it["shape_id"]
         cam16 = it["camera"].numpy().astype(np.float64)
-        (normals,) = _run_batch(gen, [C.GENERATOR_OUTPUT], it["sketch"].numpy()[None].astype(np.float32))
+        (normals,) = gen.session.run([C.GENERATOR_OUTPUT], {gen.input_name: it["sketch"].numpy()[None].astype(np.float32)})
         normals = np.clip(normals, 0.0, 1.0).astype(np.float32)
         true = it["silhouette"][0].numpy() > 0.5
         size = true.shape[0]
@@ -132,7 +132,7 @@ def run_supports_bench(
                "true": image_support_count(true), "generator": image_support_count(generator_silhouette(normals))}
         for stage, small in (("mesh", downsample_normals(normals)), ("mesh_true_input", it["normals64"].numpy()[None])):
             mesh = mesh_of(small)
-            px, depth = pixel_coords(mesh.vertices, camera, size)
+            px, _ = pixel_coords(mesh.vertices, camera, size)
             row[stage] = image_support_count(render_silhouette(px, mesh.faces, size)) if np.isfinite(px).all() else 0
             world = Mesh(world_vertices(np.asarray(mesh.vertices, np.float64), cam16), mesh.faces)
             row[f"{stage}_3d"] = support_count(solid_voxels(world, VOXEL_RESOLUTION))
