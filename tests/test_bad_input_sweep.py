@@ -334,6 +334,8 @@ TRAIN_CASES = [
     Case("non-numeric --iters", _train("mesh", "data", "--iters", "many"), "--iters: invalid int value: 'many'"),
     Case("negative learning rate", _train("mesh", "data", "--lr-mesh", "-1"), "lr_mesh must be finite and > 0"),
     Case("NaN loss weight", _train("mesh", "data", "--lambda-s", "nan"), "lambda_s must be finite and >= 0"),
+    Case("negative support band weight", _train("mesh", "data", "--support-band-weight", "-2"),
+         "support_band_weight must be finite and >= 0"),
     Case("unknown mode", lambda w: ["train", "sculpt", "--data", w["data"], "--out", w["out"] / "run"],
          "invalid choice: 'sculpt'"),
 ]

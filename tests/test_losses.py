@@ -20,6 +20,7 @@ from training.model.losses import (
     edge_loss,
     normal_loss,
     silhouette_iou_loss,
+    support_band_weights,
     total_loss,
 )
 
@@ -185,6 +186,82 @@ def test_iou_loss_empty_silhouettes_are_zero_with_finite_gradient():
     loss2.backward()
     _close(loss2.item(), 1.0, rtol=0, atol=1e-6)
     assert torch.isfinite(pred2.grad).all() and float(pred2.grad[0, 2, 2]) < 0  # growing into the target helps
+
+
+def test_support_band_weights_mark_the_lowest_quarter_of_the_covered_rows():
+    # a "table" covering rows 2..9 (8 rows): its lowest quarter is rows 8 and 9, every column of them
+    t = torch.zeros(2, 12, 6)
+    t[0, 2:4, :] = 1  # top
+    t[0, 4:10, 0] = t[0, 4:10, 5] = 1  # two legs down to row 9
+    w = support_band_weights(t, 3.0)
+    expected = torch.ones(12)
+    expected[8:10] = 4.0
+    assert torch.equal(w[0], expected[:, None].expand(12, 6))
+    assert torch.equal(w[1], torch.ones(12, 6))  # empty target: no band
+    # a one-row silhouette is its own band; band 1 weights every covered row's span
+    one = torch.zeros(1, 5, 5)
+    one[0, 3, 1:3] = 1
+    assert torch.equal(support_band_weights(one, 1.0)[0].sum(1), torch.tensor([5.0, 5, 5, 10, 5]))
+    assert torch.equal(support_band_weights(t[:1], 1.0, band=1.0)[0, :, 0], torch.tensor([1.0, 1] + [2.0] * 8 + [1, 1]))
+    assert torch.equal(support_band_weights(t, 0.0), torch.ones_like(t))
+    for bad in (-1.0, float("nan"), float("inf"), True):
+        with pytest.raises(ValueError, match="gain"):
+            support_band_weights(t, bad)
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="band"):
+            support_band_weights(t, 1.0, band=bad)
+
+
+def test_weighted_iou_loss_counts_weighted_pixels_and_has_exact_gradients():
+    # hand count: target 4 px in row 0 (weight 1) and 4 px in row 3 (weight 5); the prediction covers the row-0 pixels
+    # and one of row 3: I = 4 + 5, U = 4 + 4 * 5 (eps, 1e-6 px, moves it by about 3e-8)
+    target = torch.zeros(1, 4, 4, dtype=torch.float64)
+    target[0, 0] = target[0, 3] = 1
+    pred = torch.zeros_like(target)
+    pred[0, 0] = 1
+    pred[0, 3, 0] = 1
+    weight = torch.ones_like(target)
+    weight[0, 3] = 5.0
+    _close(float(silhouette_iou_loss(pred, target, weight=weight)), 1.0 - 9.0 / 24.0, rtol=1e-6, atol=1e-7)
+    # weights of one are Eq. 3; a scalar multiple of the weights changes nothing
+    rng = np.random.default_rng(3)
+    p = torch.from_numpy(rng.random((2, 7, 5))).requires_grad_(True)
+    q = torch.from_numpy((rng.random((2, 7, 5)) > 0.5).astype(np.float64))
+    w = torch.from_numpy(1.0 + 3.0 * rng.random((2, 7, 5)))
+    d = p.detach()
+    _close(float(silhouette_iou_loss(d, q, weight=torch.ones_like(q))), float(silhouette_iou_loss(d, q)), **TOL64)
+    # (up to eps, which does not scale with the weights)
+    _close(float(silhouette_iou_loss(d, q, weight=7 * w)), float(silhouette_iou_loss(d, q, weight=w)), rtol=1e-6, atol=1e-7)
+    # autograd against central differences, every pixel
+    loss = silhouette_iou_loss(p, q, weight=w)
+    (grad,) = torch.autograd.grad(loss, p)
+    h = 1e-6
+    numeric = torch.zeros_like(grad)
+    with torch.no_grad():
+        for idx in itertools.product(*(range(n) for n in p.shape)):
+            up, down = p.clone(), p.clone()
+            up[idx] += h
+            down[idx] -= h
+            numeric[idx] = (silhouette_iou_loss(up, q, weight=w) - silhouette_iou_loss(down, q, weight=w)) / (2 * h)
+    assert torch.allclose(grad, numeric, rtol=1e-6, atol=1e-9)
+    with pytest.raises(ValueError, match="weight"):
+        silhouette_iou_loss(p, q, weight=torch.ones(2, 7))
+
+
+def test_mesh_loss_support_band_weight_reaches_the_silhouette_term():
+    mesh = icosphere(1, 0.5)
+    v = torch.from_numpy(mesh.vertices.astype(np.float32))[None]
+    pred = torch.zeros(1, 8, 8)
+    pred[0, 1:6, 2:6] = 1  # a skirt: covers the gap between the legs, misses nothing else
+    target = torch.zeros(1, 8, 8)
+    target[0, 1:4, 2:6] = 1
+    target[0, 4:6, 2] = target[0, 4:6, 5] = 1  # rows 1..5; its band is rows 4 and 5
+    plain = MeshLoss(mesh)(v, pred_silhouette=pred, target_silhouette=target)[1]["silhouette"]
+    weighted = MeshLoss(mesh, support_band_weight=3.0)(v, pred_silhouette=pred, target_silhouette=target)[1]["silhouette"]
+    _close(plain, 1.0 - 16.0 / 20.0, rtol=1e-6, atol=1e-7)  # 4 gap pixels of 20
+    _close(weighted, 1.0 - (12.0 + 4 * 4.0) / (12.0 + 8 * 4.0), rtol=1e-6, atol=1e-7)  # the gap weighs 4x
+    with pytest.raises(ValueError, match="support_band_weight"):
+        MeshLoss(mesh, support_band_weight=-1.0)
 
 
 # ---------------------------------------------------------------- Eq. 4

@@ -4731,6 +4731,22 @@ PY
         sketchmesh bench supports --data "$DATA36C" --split train --models "$m" --threads 2 --quiet \
           --out "$OUT59/supports_choice_${m##*/models_}"
       done ;;
+    predictor-v59-legs-band)  # the legged specialist's eleventh round (predictor-v58-legs11) again with the silhouette
+      # term's lowest quarter of rows (legs and the gaps between them) weighing 4 (--support-band-weight 3); the same start,
+      # data, cosine and 2,400 iterations, into RUNS59/legs11_band (run it alone; resumes)
+      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || step import-legs-v58
+      RECIPE_EXTRA="--support-band-weight ${BAND59:-3}" RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA58 \
+        recipe20 "$RUNS58/bundle_legs/predictor" "$RUNS59/legs11_band" "${V36_ITERS:-2400}" "${V36_MINUTES:-45}" 2 ;;
+    check-legs-band-v59)  # that run exported as the specialists are (OUT59/models_legs11_band), scored on the choice set
+      # beside the bundled specialist and the eleventh round as trained (the control), into OUT59/check_legs_band, and its
+      # supports counted there (bench supports, OUT59/supports_choice_legs11_band)
+      [ -f "$RUNS59/legs11_band/config.json" ] || step predictor-v59-legs-band
+      [ -f "$OUT58/models_legs11/mesh_predictor.onnx" ] || step check-legs-v58
+      choice_data "$DATA36C" "${LEGS[@]}"
+      round_check "$OUT59" "$RUNS59/legs11_band" legs11_band "$DATA36C" check_legs_band "$OUT58/models_bundle_legs" \
+        "$OUT58/models_legs11"
+      sketchmesh bench supports --data "$DATA36C" --split train --models "$OUT59/models_legs11_band" --threads 2 --quiet \
+        --out "$OUT59/supports_choice_legs11_band" ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \

@@ -93,6 +93,10 @@ class TrainConfig:
             :class:`training.model.networks.MeshPredictor`; the compact predictor's head is linear).
         normal_region: "target" (the default: inside the ground-truth silhouette only; see
             :class:`training.model.losses.MeshLoss`) or "image" (Eq. 2 over the whole image, the paper's).
+        support_band_weight: the silhouette term's pixels in the lowest quarter of each target
+            silhouette's rows, where a standing shape's legs and the gaps between them are, weigh
+            ``1 + support_band_weight`` (:func:`training.model.losses.support_band_weights`); 0 (the
+            default): the paper's Eq. 3.
         predictor_smoothing: lambda of the predictor's smooth offsets ``(I + lambda L)^-1`` (0: off;
             see :class:`training.model.networks.MeshPredictor`).
         extra_views: K other known views rendered per sample for the mesh loss (default 3).
@@ -193,6 +197,7 @@ class TrainConfig:
     predictor_smoothing: float = 16.0
     predictor_local_bound: str = "tanh"
     normal_region: str = "target"
+    support_band_weight: float = 0.0
     extra_views: int = 3
     supervision: str = "2d"
     lambda_chamfer: float = 10.0
@@ -239,6 +244,8 @@ class TrainConfig:
             problems.append(f"predictor_arch must be 'softras' or 'compact', got {self.predictor_arch!r}")
         if self.normal_region not in ("image", "target"):
             problems.append(f"normal_region must be 'image' or 'target', got {self.normal_region!r}")
+        if not (math.isfinite(float(self.support_band_weight)) and float(self.support_band_weight) >= 0):
+            problems.append(f"support_band_weight must be finite and >= 0, got {self.support_band_weight}")
         if self.supervision not in ("2d", "3d"):
             problems.append(f"supervision must be '2d' or '3d', got {self.supervision!r}")
         elif self.supervision == "3d" and self.mode != "mesh":

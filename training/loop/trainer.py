@@ -371,7 +371,8 @@ class Trainer:
 
             template = icosphere(cfg.template_level, TEMPLATE_RADIUS)
             self.mesh_loss = MeshLoss(template, LossWeights(cfg.lambda_n, cfg.lambda_s, cfg.lambda_e, cfg.lambda_m),
-                                      normal_region=cfg.normal_region).to(self.device)
+                                      normal_region=cfg.normal_region,
+                                      support_band_weight=cfg.support_band_weight).to(self.device)
             self.faces = torch.from_numpy(np.array(template.faces)).to(self.device)
             self._mirror_perm = torch.from_numpy(np.array(mirror_permutation(cfg.template_level))).to(self.device)
 

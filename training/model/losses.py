@@ -140,7 +140,8 @@ def normal_loss(pred: torch.Tensor, target: torch.Tensor, reduction: str = "sum"
 # --------------------------------------------------------------------------- Eq. 3
 
 
-def silhouette_iou_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = IOU_EPS) -> torch.Tensor:
+def silhouette_iou_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = IOU_EPS,
+                        weight: torch.Tensor | None = None) -> torch.Tensor:
     """Eq. 3: one minus the soft intersection-over-union of silhouettes, averaged over the batch.
 
     Per sample, with ``I = sum(S_hat * S)`` and ``U = sum(S_hat + S - S_hat * S)`` over pixels::
@@ -152,10 +153,16 @@ def silhouette_iou_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = I
     match perfectly, loss 0, with finite gradients (the denominator is at least ``eps``). When
     the union is a handful of pixels or more, ``eps`` (1e-6 pixel) changes the value by < 1e-6.
 
+    With ``weight`` (``w >= 0`` per pixel) both sums are weighted, ``I = sum(w S_hat S)`` and
+    ``U = sum(w (S_hat + S - S_hat S))``: a pixel of weight 4 counts as four, so a small region
+    (legs and the gaps between them, :func:`support_band_weights`) moves the loss as a larger
+    one would. Still in [0, 1]; weights of 1 give Eq. 3 exactly.
+
     Args:
         pred: (B, H, W) rendered silhouette in [0, 1].
         target: (B, H, W) ground-truth silhouette in [0, 1].
         eps: > 0, in pixel units.
+        weight: None, or (B, H, W) finite per-pixel weights >= 0 (not differentiated).
 
     Returns:
         () scalar tensor.
@@ -164,9 +171,58 @@ def silhouette_iou_loss(pred: torch.Tensor, target: torch.Tensor, eps: float = I
     if not (math.isfinite(eps) and eps > 0):
         raise ValueError(f"silhouette_iou_loss eps must be finite and > 0, got {eps}")
     p, t = pred.flatten(1), target.flatten(1)
-    inter = (p * t).sum(1)
-    union = (p + t - p * t).sum(1)
+    overlap = p * t
+    cover = p + t - overlap
+    if weight is not None:
+        if not isinstance(weight, torch.Tensor) or tuple(weight.shape) != tuple(pred.shape):
+            raise ValueError(f"silhouette_iou_loss weight must be a tensor of the silhouettes' shape {tuple(pred.shape)}, "
+                             f"got {getattr(weight, 'shape', type(weight).__name__)}")
+        w = weight.detach().flatten(1).to(p.dtype)
+        overlap, cover = overlap * w, cover * w
+    inter = overlap.sum(1)
+    union = cover.sum(1)
     return (1.0 - (inter + eps) / (union + eps)).mean()
+
+
+SUPPORT_BAND = 0.25
+"""Share of a target silhouette's height, from its lowest row, that :func:`support_band_weights` weights: where a
+standing shape's supports are (the band :func:`training.evaluation.metrics.image_support_count` counts them in)."""
+
+
+def support_band_weights(target: torch.Tensor, gain: float, band: float = SUPPORT_BAND) -> torch.Tensor:
+    """Per-pixel weights of the silhouette term that make a standing shape's supports count.
+
+    A chair's legs and the gaps between them are a few percent of its silhouette's pixels, so a mesh that stands on a
+    skirt loses little IoU. These weights are ``1 + gain`` on every pixel (shape or background, the full width) of the
+    rows in the lowest ``band`` of the rows each target silhouette covers, and 1 elsewhere: legs left out and gaps
+    filled in cost ``1 + gain`` times as much. An empty target gets weights of 1.
+
+    Args:
+        target: (B, H, W) target silhouettes in [0, 1] (a pixel above 0.5 is covered).
+        gain: finite, >= 0 (0: all weights 1).
+        band: the share of the covered rows' span weighted, in (0, 1]; at least one row.
+
+    Returns:
+        (B, H, W) weights, the target's dtype and device, no gradient.
+    """
+    if isinstance(gain, bool) or not isinstance(gain, (int, float)) or not (math.isfinite(gain) and gain >= 0):
+        raise ValueError(f"support_band_weights gain must be a finite number >= 0, got {gain!r}")
+    if isinstance(band, bool) or not isinstance(band, (int, float)) or not (math.isfinite(band) and 0 < band <= 1):
+        raise ValueError(f"support_band_weights band must be a number in (0, 1], got {band!r}")
+    if target.ndim != 3:
+        raise ValueError(f"support_band_weights expects (B, H, W) silhouettes, got {tuple(target.shape)}")
+    with torch.no_grad():
+        h = target.shape[1]
+        rows_covered = (target > 0.5).any(dim=2)  # (B, H)
+        index = torch.arange(h, device=target.device)
+        lowest = torch.where(rows_covered, index, -1).amax(dim=1)  # -1 when empty
+        highest = torch.where(rows_covered, index, h).amin(dim=1)
+        span = (lowest - highest + 1).clamp(min=0).to(torch.float64)
+        count = torch.ceil(span * band - 1e-9).clamp(min=1).to(torch.long)
+        in_band = (index[None] > (lowest - count)[:, None]) & (index[None] <= lowest[:, None])  # (B, H)
+        in_band &= (lowest >= 0)[:, None]
+        w = 1.0 + float(gain) * in_band.to(target.dtype)
+        return w[:, :, None].expand(target.shape).contiguous()
 
 
 # --------------------------------------------------------------------------- Eq. 4
@@ -438,12 +494,18 @@ class MeshLoss(nn.Module):
             IoU term, and from the template sphere its steepest descent is to shrink the render
             towards empty. Inside the target only, uncovered pixels still cost and wrong normals
             still cost, but nothing rewards rendering less; over-coverage is left to the IoU term.
+        support_band_weight: the silhouette term's pixels in the lowest quarter of each target's rows weigh
+            ``1 + support_band_weight`` (:func:`support_band_weights`; 0, the default: Eq. 3 as written).
     """
 
     def __init__(self, template: Mesh, weights: LossWeights | None = None,
                  normal_reference_pixels: int | None = NORMAL_REFERENCE_PIXELS,
-                 normal_region: str = "image") -> None:
+                 normal_region: str = "image", support_band_weight: float = 0.0) -> None:
         super().__init__()
+        if (isinstance(support_band_weight, bool) or not isinstance(support_band_weight, (int, float))
+                or not (math.isfinite(support_band_weight) and support_band_weight >= 0)):
+            raise ValueError(f"support_band_weight must be a finite number >= 0, got {support_band_weight!r}")
+        self.support_band_weight = float(support_band_weight)
         if normal_region not in NORMAL_REGIONS:
             raise ValueError(f"normal_region must be one of {NORMAL_REGIONS}, got {normal_region!r}")
         self.normal_region = normal_region
@@ -496,7 +558,9 @@ class MeshLoss(nn.Module):
         if (pred_silhouette is None) != (target_silhouette is None):
             raise ValueError("MeshLoss needs both pred_silhouette and target_silhouette, or neither")
         if pred_silhouette is not None:
-            terms["silhouette"] = silhouette_iou_loss(pred_silhouette, target_silhouette)
+            weight = (support_band_weights(target_silhouette, self.support_band_weight)
+                      if self.support_band_weight else None)
+            terms["silhouette"] = silhouette_iou_loss(pred_silhouette, target_silhouette, weight=weight)
         # topology buffers were validated at construction: skip the per-call range checks (no device sync)
         terms["edge"] = _edge_loss(vertices, self.edges, self.template_lengths)
         terms["smoothness"] = _dihedral_smoothness_loss(vertices, self.quads)
