@@ -249,6 +249,9 @@
 #   back a run (RUNS59/legs12); check-legs-v59 scores it on the choice set beside the bundled specialist;
 #   gpulegs12-route-v59 routes it in the bundle and scores every test sketch; versus-v59, ship-compact19-v59.
 #   latency-bundle-v59 times the shipped bundle here; supports-v59 counts where the legs are lost (bench supports).
+#   Nothing shipped: predictor-v59-legs-n5e4 check-legs-n5e4-v59 supports-choice-v59 (the normal term at a quarter);
+#   predictor-v59-legs-band check-legs-band-v59 and predictor-v59-legs-band1 check-legs-band1-v59 (the silhouette's
+#   lowest quarter of rows weighing 4 and 2, --support-band-weight).
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4747,6 +4750,23 @@ PY
         "$OUT58/models_legs11"
       sketchmesh bench supports --data "$DATA36C" --split train --models "$OUT59/models_legs11_band" --threads 2 --quiet \
         --out "$OUT59/supports_choice_legs11_band" ;;
+    predictor-v59-legs-band1)  # predictor-v59-legs-band at a third of its extra weight (--support-band-weight 1: the lowest
+      # quarter of rows weighing 2): whether a milder weight keeps the standing chairs without the IoU it cost; the same
+      # start, data, cosine and 2,400 iterations, into RUNS59/legs11_band1 (run it alone; resumes)
+      [ -f "$RUNS58/bundle_legs/predictor/config.json" ] || step import-legs-v58
+      RECIPE_EXTRA="--support-band-weight ${BAND59B:-1}" RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA58 \
+        recipe20 "$RUNS58/bundle_legs/predictor" "$RUNS59/legs11_band1" "${V36_ITERS:-2400}" "${V36_MINUTES:-45}" 2 ;;
+    check-legs-band1-v59)  # that run exported (OUT59/models_legs11_band1), scored on the choice set beside the eleventh round
+      # as trained (the control) and at weight 3 (OUT59/models_legs11_band), into OUT59/check_legs_band1, and its supports
+      # counted there (OUT59/supports_choice_legs11_band1)
+      [ -f "$RUNS59/legs11_band1/config.json" ] || step predictor-v59-legs-band1
+      [ -f "$OUT58/models_legs11/mesh_predictor.onnx" ] || step check-legs-v58
+      [ -f "$OUT59/models_legs11_band/mesh_predictor.onnx" ] || step check-legs-band-v59
+      choice_data "$DATA36C" "${LEGS[@]}"
+      round_check "$OUT59" "$RUNS59/legs11_band1" legs11_band1 "$DATA36C" check_legs_band1 "$OUT58/models_legs11" \
+        "$OUT59/models_legs11_band"
+      sketchmesh bench supports --data "$DATA36C" --split train --models "$OUT59/models_legs11_band1" --threads 2 --quiet \
+        --out "$OUT59/supports_choice_legs11_band1" ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
