@@ -251,7 +251,7 @@
 #   latency-bundle-v59 times the shipped bundle here; supports-v59 counts where the legs are lost (bench supports).
 #   Nothing shipped: predictor-v59-legs-n5e4 check-legs-n5e4-v59 supports-choice-v59 (the normal term at a quarter);
 #   predictor-v59-legs-band check-legs-band-v59 and predictor-v59-legs-band1 check-legs-band1-v59 (the silhouette's
-#   lowest quarter of rows weighing 4 and 2, --support-band-weight).
+#   lowest quarter of rows weighing 4 and 2, --support-band-weight); gallery-band-v59 draws their meshes.
 # The first models and the experiments that chose today's training defaults (the README's history):
 #   data normals normals16 mesh silhouette paper-normal joint export eval eval-strong eval-gt tradeoff
 #   gallery docs clamp-trial overfit variants (all-v1 runs the first models' steps in order).
@@ -4757,16 +4757,61 @@ PY
       RECIPE_EXTRA="--support-band-weight ${BAND59B:-1}" RECIPE_LR=${V36_LR:-2e-4} DATA20=$DATA58 \
         recipe20 "$RUNS58/bundle_legs/predictor" "$RUNS59/legs11_band1" "${V36_ITERS:-2400}" "${V36_MINUTES:-45}" 2 ;;
     check-legs-band1-v59)  # that run exported (OUT59/models_legs11_band1), scored on the choice set beside the eleventh round
-      # as trained (the control) and at weight 3 (OUT59/models_legs11_band), into OUT59/check_legs_band1, and its supports
-      # counted there (OUT59/supports_choice_legs11_band1)
+      # as trained (the control) and at weight 3 (OUT59/models_legs11_band, where check-legs-band-v59 has made it), into
+      # OUT59/check_legs_band1, and its supports and the control's counted there (OUT59/supports_choice_<name>)
       [ -f "$RUNS59/legs11_band1/config.json" ] || step predictor-v59-legs-band1
       [ -f "$OUT58/models_legs11/mesh_predictor.onnx" ] || step check-legs-v58
-      [ -f "$OUT59/models_legs11_band/mesh_predictor.onnx" ] || step check-legs-band-v59
+      local band3=(); [ -f "$OUT59/models_legs11_band/mesh_predictor.onnx" ] && band3=("$OUT59/models_legs11_band")
       choice_data "$DATA36C" "${LEGS[@]}"
       round_check "$OUT59" "$RUNS59/legs11_band1" legs11_band1 "$DATA36C" check_legs_band1 "$OUT58/models_legs11" \
-        "$OUT59/models_legs11_band"
-      sketchmesh bench supports --data "$DATA36C" --split train --models "$OUT59/models_legs11_band1" --threads 2 --quiet \
-        --out "$OUT59/supports_choice_legs11_band1" ;;
+        "${band3[@]}"
+      local m
+      for m in "$OUT58/models_legs11" "$OUT59/models_legs11_band1"; do  # the control's where supports-choice-v59 has not
+        [ -f "$OUT59/supports_choice_${m##*/models_}/supports.md" ] && [ "$m" = "$OUT58/models_legs11" ] && continue
+        sketchmesh bench supports --data "$DATA36C" --split train --models "$m" --threads 2 --quiet \
+          --out "$OUT59/supports_choice_${m##*/models_}"
+      done ;;
+    gallery-band-v59)  # the meshes behind check-legs-band1-v59's figures: three test chairs and tables (DATA36A's, rendered
+      # alone into DATA59G [data/test100e4_legs]), mirror averaged, by the eleventh round (the control), at support band
+      # weight 3 (where check-legs-band-v59 has made it) and at weight 1 (OUT59/gallery_<models>.png), and side by side,
+      # at half size, as the card's picture (docs/support_band.png)
+      local m pngs=() titles=() gal=${DATA59G:-data/test100e4_legs}
+      [ -f "$OUT59/models_legs11_band1/mesh_predictor.onnx" ] || step check-legs-band1-v59
+      sketchmesh data --source procedural --shapes-per-category 100 --categories chair table --views 12 \
+        --elevations 0 15 30 45 --splits test --workers 2 --out "$gal"
+      for m in "$OUT58/models_legs11" "$OUT59/models_legs11_band" "$OUT59/models_legs11_band1"; do
+        [ -f "$m/mesh_predictor.onnx" ] || continue
+        sketchmesh gallery --data "$gal" --models "$m" --categories chair table --per-category 3 --mirror-average \
+          --threads 2 -o "$OUT59/gallery_${m##*/models_}.png"
+        pngs+=("$OUT59/gallery_${m##*/models_}.png")
+        case $m in
+          *band) titles+=("support band weight 3") ;;
+          *band1) titles+=("support band weight 1") ;;
+          *) titles+=("eleventh round (control)") ;;
+        esac
+      done
+      python3 - docs/support_band.png "${#pngs[@]}" "${pngs[@]}" "${titles[@]}" <<'PY'
+import os
+import sys
+
+from PIL import Image, ImageDraw
+
+out, n = sys.argv[1], int(sys.argv[2])
+paths, titles = sys.argv[3:3 + n], sys.argv[3 + n:]
+ims = [Image.open(p).convert("RGB") for p in paths]
+ims = [im.resize((im.width // 2, im.height // 2), Image.LANCZOS) for im in ims]
+sheet = Image.new("RGB", (sum(im.width for im in ims), max(im.height for im in ims) + 24), "white")
+x = 0
+for im, title in zip(ims, titles):
+    sheet.paste(im, (x, 24))
+    ImageDraw.Draw(sheet).text((x + 8, 6), title, fill="black")
+    x += im.width
+tmp = out + ".tmp.png"
+sheet.save(tmp, optimize=True)
+os.replace(tmp, out)
+print("wrote", out)
+PY
+      ;;
     whl-gpu)  # the Python packages a lent GPU machine lacks (trimesh, manifold3d), as wheels for its Python 3.12 in .whl
       # (git-ignored; carry it): what training/gpu_predictor.sh installs there first
       python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
