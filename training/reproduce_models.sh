@@ -4664,6 +4664,7 @@ PY
           --views 12 --elevations 0 15 30 45 --views-per-shape 4 --splits train --workers 2 --out "$folder"
       done
       [ -f "$DATA58/manifest.json" ] || sketchmesh data merge "$DATA58" "$DATA58N" "$DATA58M"
+      [ -f "$OUT8/models_fifth/generator.onnx" ] || step models-fifth-v8
       sketchmesh data generated "$DATA58" --models "$OUT8/models_fifth" --name normals16 --workers 2
       sketchmesh data generated "$DATA58" --models "$OUT8/models_fifth" --name normals16_mirror --mirror --workers 2 ;;
     import-legs-v58)  # the bundled legged specialist (the tenth round's, int8-stored) back as a run
