@@ -4766,9 +4766,9 @@ PY
       choice_data "$DATA36C" "${LEGS[@]}"
       round_check "$OUT59" "$RUNS59/legs11_band1" legs11_band1 "$DATA36C" check_legs_band1 "$OUT58/models_legs11" \
         "${band3[@]}"
-      local m
-      for m in "$OUT58/models_legs11" "$OUT59/models_legs11_band1"; do  # the control's where supports-choice-v59 has not
-        [ -f "$OUT59/supports_choice_${m##*/models_}/supports.md" ] && [ "$m" = "$OUT58/models_legs11" ] && continue
+      local m models=("$OUT59/models_legs11_band1")  # and the control's, where supports-choice-v59 has not counted them
+      [ -f "$OUT59/supports_choice_legs11/supports.md" ] || models+=("$OUT58/models_legs11")
+      for m in "${models[@]}"; do
         sketchmesh bench supports --data "$DATA36C" --split train --models "$m" --threads 2 --quiet \
           --out "$OUT59/supports_choice_${m##*/models_}"
       done ;;
@@ -4792,10 +4792,11 @@ PY
         esac
       done
       python3 - docs/support_band.png "${#pngs[@]}" "${pngs[@]}" "${titles[@]}" <<'PY'
-import os
 import sys
 
 from PIL import Image, ImageDraw
+
+from engine.fileio import atomic_open
 
 out, n = sys.argv[1], int(sys.argv[2])
 paths, titles = sys.argv[3:3 + n], sys.argv[3 + n:]
@@ -4807,9 +4808,8 @@ for im, title in zip(ims, titles):
     sheet.paste(im, (x, 24))
     ImageDraw.Draw(sheet).text((x + 8, 6), title, fill="black")
     x += im.width
-tmp = out + ".tmp.png"
-sheet.save(tmp, optimize=True)
-os.replace(tmp, out)
+with atomic_open(out) as fh:
+    sheet.save(fh, format="PNG", optimize=True)
 print("wrote", out)
 PY
       ;;
